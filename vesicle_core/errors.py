@@ -1,0 +1,47 @@
+"""The few exception types a user of vesicle_core sees."""
+
+
+class VesicleError(Exception):
+    """Base class of every error raised on purpose by vesicle_core."""
+
+
+class ConfigError(VesicleError, ValueError):
+    """A parameter or configuration value is missing, of the wrong type or out of range."""
+
+
+class MeshError(VesicleError, ValueError):
+    """A mesh is not a closed, consistently oriented genus-0 triangulation, or cannot be built."""
+
+
+class NumericalInstability(VesicleError, RuntimeError):
+    """A run produced NaN/Inf, blew up, or drifted beyond its allowed area/volume error."""
+
+
+def check_range(name, value, lo=None, hi=None, *, lo_open=False, hi_open=False, integer=False):
+    """Return ``value`` if it lies in the allowed range, else raise ConfigError naming ``name``.
+
+    The message states the allowed range so a user can fix the input without reading code.
+    """
+    import math
+
+    def _range_text():
+        left = "(" if lo_open else "["
+        right = ")" if hi_open else "]"
+        return f"{left}{'-inf' if lo is None else lo}, {'inf' if hi is None else hi}{right}"
+
+    if integer:
+        if isinstance(value, bool) or not float(value).is_integer():
+            raise ConfigError(f"{name} must be an integer in {_range_text()}, got {value!r}")
+        value = int(value)
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name} must be a number in {_range_text()}, got {value!r}") from None
+    if math.isnan(v):
+        raise ConfigError(f"{name} must be a number in {_range_text()}, got NaN")
+    bad = (lo is not None and (v < lo or (lo_open and v == lo))) or (
+        hi is not None and (v > hi or (hi_open and v == hi))
+    )
+    if bad:
+        raise ConfigError(f"{name} must lie in {_range_text()}, got {value!r}")
+    return value
