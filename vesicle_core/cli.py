@@ -1,0 +1,118 @@
+"""The ``vesicle`` command: mesh | run | decompose | theory | fit | bench.
+
+Every step of the Snakemake workflow calls one of these subcommands, so each can also be run by
+hand. Bad arguments exit with status 2 and a message that names the argument and its allowed range.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from .errors import VesicleError, check_range
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's default prints usage; keep that, and name the command
+        self.print_usage(sys.stderr)
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _positive_float(name):
+    def conv(s):
+        try:
+            v = float(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number > 0, got {s!r}") from None
+        if not v > 0:
+            raise argparse.ArgumentTypeError(f"{name} must be > 0, got {s!r}")
+        return v
+
+    return conv
+
+
+def _int_in(name, lo, hi):
+    def conv(s):
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {s!r}") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {v}")
+        return v
+
+    return conv
+
+
+# --------------------------------------------------------------------------- mesh
+def _add_mesh(sub):
+    from .mesh import FAMILIES, MAX_ICOSPHERE_LEVEL
+
+    p = sub.add_parser("mesh", help="build an ellipsoidal vesicle mesh and write it as netCDF (UGRID)")
+    p.add_argument("-o", "--output", required=True, help="output netCDF file")
+    p.add_argument("--family", choices=FAMILIES, default="icosphere", help="mesh family (default: icosphere)")
+    p.add_argument("--level", type=_int_in("--level", 0, MAX_ICOSPHERE_LEVEL), default=4,
+                   help=f"icosphere subdivision level in [0, {MAX_ICOSPHERE_LEVEL}] (10*4^level+2 vertices; default 4)")
+    p.add_argument("--n-vertices", type=_int_in("--n-vertices", 12, 20_000_000), default=None,
+                   help="vertex count of the quasi-uniform family (default: that of --level)")
+    p.add_argument("--seed", type=_int_in("--seed", 0, 2**31 - 1), default=0, help="seed of the quasi-uniform family")
+    p.add_argument("--lloyd-steps", type=_int_in("--lloyd-steps", 0, 1000), default=8,
+                   help="Lloyd relaxation steps of the quasi-uniform family (default 8)")
+    p.add_argument("--axes", type=_positive_float("--axes"), nargs=3, metavar=("A", "B", "C"), default=(1.0, 0.8, 1.0),
+                   help="axes ratio a:b:c of the ellipsoid along x, y, z, each > 0 (default 1 0.8 1)")
+    p.add_argument("--delta", type=float, default=None,
+                   help="target excess area Delta >= 0; solves b in 1:b:1 on this mesh (overrides --axes)")
+    p.add_argument("--radius", type=_positive_float("--radius"), default=1.0,
+                   help="equivalent radius R > 0 (volume = 4/3 pi R^3; default 1, the solver's unit)")
+    p.set_defaults(func=_cmd_mesh)
+
+
+def _cmd_mesh(a):
+    from . import mesh as M
+
+    if a.delta is not None:
+        check_range("--delta", a.delta, 0.0, 50.0)
+    m = M.make_vesicle(a.family, level=a.level, axes=tuple(a.axes), R=a.radius, target_delta=a.delta,
+                       n_vertices=a.n_vertices, seed=a.seed, lloyd_steps=a.lloyd_steps)
+    M.save(m, a.output)
+    q = m.quality()
+    print(f"wrote {a.output}")
+    print(f"  family {m.attrs['family']}  vertices {m.n_vertices}  faces {m.n_faces}")
+    print(f"  axes {m.attrs['axes_a']:.6g}:{m.attrs['axes_b']:.6g}:{m.attrs['axes_c']:.6g}  R {a.radius:g}")
+    print(f"  Delta {m.excess_area():.6f}  volume {m.volume():.6g}  area {m.area():.6g}")
+    print(f"  edge min/mean/max {q['edge_min']:.4g}/{q['edge_mean']:.4g}/{q['edge_max']:.4g}  spread {q['edge_spread']:.3f}")
+    print(f"  aspect mean/max {q['aspect_mean']:.3f}/{q['aspect_max']:.3f}  angles min/max "
+          f"{q['angle_min_deg']:.1f}/{q['angle_max_deg']:.1f} deg")
+    return 0
+
+
+# --------------------------------------------------------------------------- entry point
+_ADDERS = [_add_mesh]
+
+
+def build_parser():
+    parser = _Parser(prog="vesicle", description=__doc__.splitlines()[0])
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"vesicle_core {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for add in _ADDERS:
+        add(sub)
+    return parser
+
+
+def main(argv=None):
+    # spinning OpenBLAS threads slow the FFT 5-10x (CALIBRATION.md); the solver uses no BLAS-heavy code
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args) or 0
+    except VesicleError as exc:
+        print(f"vesicle {args.command}: error: {exc}", file=sys.stderr)
+        return 2 if not exc.__class__.__name__ == "NumericalInstability" else 3
+
+
+if __name__ == "__main__":
+    sys.exit(main())
