@@ -87,8 +87,70 @@ def _cmd_mesh(a):
     return 0
 
 
+# --------------------------------------------------------------------------- run
+def _parse_set(items):
+    import yaml
+
+    out = {}
+    for it in items or []:
+        if "=" not in it:
+            raise argparse.ArgumentTypeError(f"--set expects KEY=VALUE, got {it!r}")
+        k, v = it.split("=", 1)
+        out[k.strip()] = yaml.safe_load(v)
+    return out
+
+
+def _add_run(sub):
+    p = sub.add_parser("run", help="simulate a vesicle in the reversed elongational flow (resumes if interrupted)")
+    p.add_argument("mesh", help="mesh file written by 'vesicle mesh'")
+    p.add_argument("-o", "--outdir", required=True, help="run directory (trajectory.nc, checkpoint.nc)")
+    p.add_argument("-c", "--config", help="YAML file of run parameters (see vesicle_core.simulate.RunConfig)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one run parameter (repeatable)")
+    p.add_argument("--si", metavar="YAML", help="YAML of SI parameters (units.Params: R, gamma_dot, mu, kappa, rho, L, ...)"
+                   " from which chi, Re and L are derived")
+    p.add_argument("--quiet", action="store_true", help="no progress output")
+    p.set_defaults(func=_cmd_run)
+
+
+def _cmd_run(a):
+    import logging
+
+    import yaml
+
+    from . import mesh as M
+    from .errors import ConfigError
+    from .simulate import RunConfig, run
+
+    logging.basicConfig(level=logging.WARNING if a.quiet else logging.INFO, format="[vesicle run] %(message)s")
+    params = {}
+    if a.config:
+        from .simulate import load_config
+
+        load_config(a.config)  # validates, naming the file in any error
+        with open(a.config) as fh:
+            params = {k: v for k, v in (yaml.safe_load(fh) or {}).items()}
+    if a.si:
+        from .units import Params
+
+        with open(a.si) as fh:
+            try:
+                p = Params(**(yaml.safe_load(fh) or {}))
+            except TypeError as exc:
+                raise ConfigError(f"{a.si}: {exc}") from None
+        params.update(chi=p.chi, Re=p.Re, L=p.L_bar)
+    try:
+        params.update(_parse_set(a.set))
+    except argparse.ArgumentTypeError as exc:
+        raise ConfigError(str(exc)) from None
+    cfg = RunConfig.from_dict(params)  # validated before any long work starts
+    mesh = M.load(a.mesh)
+    path = run(mesh, cfg, a.outdir, progress=not a.quiet)
+    print(f"wrote {path}")
+    return 0
+
+
 # --------------------------------------------------------------------------- entry point
-_ADDERS = [_add_mesh]
+_ADDERS = [_add_mesh, _add_run]
 
 
 def build_parser():
