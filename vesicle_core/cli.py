@@ -149,8 +149,34 @@ def _cmd_run(a):
     return 0
 
 
+# --------------------------------------------------------------------------- decompose
+def _add_decompose(sub):
+    p = sub.add_parser("decompose", help="spherical-harmonic spectra of a trajectory (eqs. 30-32) -> spectra.nc")
+    p.add_argument("trajectory", help="trajectory.nc written by 'vesicle run'")
+    p.add_argument("-o", "--output", required=True, help="output netCDF file")
+    p.add_argument("--l-max", type=_int_in("--l-max", 2, 512), default=None,
+                   help="largest degree (default: what the mesh resolves, at most 64)")
+    p.add_argument("--stride", type=_int_in("--stride", 1, 10**6), default=1, help="analyse every k-th frame")
+    p.add_argument("--map", type=_int_in("--map", 4, 1024), nargs=2, metavar=("NTHETA", "NPHI"), default=None,
+                   help="also store A_p(theta, phi) maps on an NTHETA x NPHI grid")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=_cmd_decompose)
+
+
+def _cmd_decompose(a):
+    from .datasets import open_trajectory, spectra_from_trajectory, write_dataset
+
+    with open_trajectory(a.trajectory, require_complete=True) as traj:
+        ds = spectra_from_trajectory(traj, l_max=a.l_max, stride=a.stride, progress=not a.quiet,
+                                     map_shape=tuple(a.map) if a.map else None, command=" ".join(sys.argv))
+    write_dataset(ds, a.output)
+    print(f"wrote {a.output}: {ds.sizes['time']} frames, l_max {ds.sizes['l'] - 1}, "
+          f"t_* = {float(ds.t_star):.4g}, l_* = {float(ds.l_star):.4g}")
+    return 0
+
+
 # --------------------------------------------------------------------------- entry point
-_ADDERS = [_add_mesh, _add_run]
+_ADDERS = [_add_mesh, _add_run, _add_decompose]
 
 
 def build_parser():
