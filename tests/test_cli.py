@@ -45,3 +45,30 @@ def test_mesh_command_bad_arguments(tmp_path, args, name):
     assert r.returncode != 0
     assert name in r.stderr
     assert not (tmp_path / "x.nc").exists()
+
+
+def test_theory_and_fit_commands(tmp_path, capsys):
+    import xarray as xr
+
+    paths = []
+    for S in (300.0, 600.0, 1200.0):
+        p = tmp_path / f"th_{S:g}.nc"
+        assert main(["theory", "--delta", "0.116", "--S", str(S), "-o", str(p), "--no-modes", "--n-out", "200"]) == 0
+        paths.append(str(p))
+    with xr.open_dataset(paths[0]) as ds:
+        assert ds.attrs["Conventions"].startswith("CF") and "history" in ds.attrs
+        assert ds.attrs["S"] == 300.0 and "l_star" in ds and "sigma" in ds
+    out = tmp_path / "fit.nc"
+    assert main(["fit", *paths, "-o", str(out)]) == 0
+    with xr.open_dataset(out) as f:
+        assert f.sizes["case"] == 3 and f.sizes["group"] == 1
+        b = float(f.l_star_exponent)
+        assert float(f.l_star_ci_low) <= b <= float(f.l_star_ci_high)
+        assert 0.3 < b < 0.5  # PA: l_* grows like S^0.43 (theory.py docstring)
+        assert (f.decay_exponent.values > 0).all()
+
+
+def test_fit_command_names_bad_file(tmp_path, capsys):
+    bad = tmp_path / "nothing.nc"
+    assert main(["fit", str(bad), "-o", str(tmp_path / "f.nc")]) == 2
+    assert "nothing.nc" in capsys.readouterr().err

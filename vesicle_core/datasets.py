@@ -402,6 +402,7 @@ def spectra_from_trajectory(
     t_star = float(time[i_star]) if i_star >= 0 else float("nan")
     l_star = float(scal["l_star_t"][i_star]) if i_star >= 0 else float("nan")
     lmn_star = int(lmn[i_star]) if i_star >= 0 else -1
+    l_peak = H.characteristic_l(D[i_star], lmn_star, method="peak") if lmn_star >= 3 else float("nan")
 
     coords = {
         "time": ("time", time, dict(sub["time"].attrs) or {"units": "1", "long_name": "gamma_dot (t - t_reverse)"}),
@@ -436,6 +437,7 @@ def spectra_from_trajectory(
                          "characteristic wrinkle mode l_*, eq. (31), up to l_max_nontrivial_t"),
         "t_star": _var((), t_star, "1", "t_*: time >= 0 at which Delta_2 is smallest (gamma_dot (t - t_reverse))"),
         "l_star": _var((), l_star, "1", "l_* of eq. (31) at t_*"),
+        "l_peak": _var((), l_peak, "1", "dominant wrinkle mode argmax_{3<=l<=l_max} Delta_l at t_* (Sec. V.A)"),
         "l_max_nontrivial": _var((), np.int32(lmn_star), "1", f"largest l with some |u_lm| > {threshold:g} at t_*"),
         "ellipsoid_axes": _var(ta, ax, "R", "semi-axes of the least-squares ellipsoid, ordered by the lab axis "
                                "each is closest to"),

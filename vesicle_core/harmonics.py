@@ -492,28 +492,13 @@ def l_max_nontrivial(u, threshold=1e-5):
     return int(out) if np.ndim(out) == 0 else out.astype(int)
 
 
-def characteristic_l(Delta_l, l_max=None):
-    """Characteristic wrinkle mode l_* of eq. (31):
+def characteristic_l(Delta_l, l_max=None, *, method="eq31"):
+    """Characteristic wrinkle mode l_*: eq. (31) (``method="eq31"``) or the dominant mode argmax_{l>=3} Delta_l
+    (``method="peak"``, Sec. V.A). Delegates to :func:`vesicle_core.theory.characteristic_l`, so simulation and
+    perturbation analysis compute l_* with the same code."""
+    from .theory import characteristic_l as _cl
 
-        l_*^2 = sum_{3<=l<=l_max} l^2/(l^2+l-2) Delta_l / sum_{3<=l<=l_max} 1/(l^2+l-2) Delta_l
-
-    Delta_l: (..., L) indexed by l from 0; l_max: int or array broadcastable to the leading shape
-    (default: L - 1). NaN where the denominator vanishes (no l >= 3 content). Since Delta_l / (l^2+l-2) is
-    |c_lm|^2 summed over m, this is the rms l of the unscaled radial-deviation spectrum.
-    """
-    D = np.nan_to_num(np.asarray(Delta_l, dtype=float), nan=0.0)
-    L = D.shape[-1]
-    l = np.arange(L, dtype=float)
-    if l_max is None:
-        l_max = L - 1
-    lm = np.asarray(l_max)
-    mask = (l >= 3) & (l <= lm[..., None])
-    g = np.where(l >= 2, (l - 1) * (l + 2), 1.0)
-    num = np.where(mask, l**2 / g * D, 0.0).sum(axis=-1)
-    den = np.where(mask, D / g, 0.0).sum(axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(den > 0, np.sqrt(num / np.where(den > 0, den, 1.0)), np.nan)
-    return float(out) if np.ndim(out) == 0 else out
+    return _cl(Delta_l, l_max, method=method)
 
 
 # --------------------------------------------------------------------------- ellipsoid fit and wrinkles

@@ -1,0 +1,315 @@
+"""Array backend: NumPy (CPU) or CuPy (GPU), and the real FFTs and scatter-add that the IBM needs.
+
+The Stokes solve of Sec. IV B (eqs. 19-23, 29) is dominated by the 3-component real FFT round trip
+of the Eulerian grid; spreading (28) needs a scatter-add with repeated indices. This module hides
+the library behind those two operations:
+
+* CPU, FFT: pyFFTW plans (cached per shape/dtype/axes) when pyFFTW is importable, else ``scipy.fft``.
+  On the 2-core reference machine a 3 x 128^3 rfftn + irfftn round trip took ~75-90 ms with
+  single-threaded pyFFTW (FFTW_ESTIMATE) against ~130-170 ms with ``scipy.fft`` (workers=1).
+  ``fft_workers`` defaults to 1 (CALIBRATION.md: ``workers=2`` was not reliably faster at 128^3 and
+  another process shares the cores); pass 2 to try.
+* CPU, scatter-add: ``np.add.at`` into an existing buffer. With NumPy 2.x it costs ~0.6 ms for
+  2562 x 64 entries into a 128^3 grid, whereas ``out += np.bincount(idx, vals, minlength=out.size)``
+  costs ~2.2 ms because it builds and adds a full-size temporary. ``bincount`` is offered for the
+  case of a *fresh* output (:meth:`Backend.bincount`).
+* GPU: ``cupy.fft`` and ``cupyx.scatter_add``. CuPy is imported lazily, only in this module.
+
+Normalisation. ``rfftn`` is the unnormalised forward transform (sum over nodes). ``irfftn`` scales
+by 1/prod(s) by default (``norm='backward'``, as NumPy); ``norm='forward'`` skips the scaling so a
+solver can fold the 1/N^3 of eq. (19) into its precomputed symbols instead of a pass over the grid.
+
+Thread safety: a Backend caches FFTW plans and scratch arrays; do not share one Backend between
+threads that transform concurrently.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from .errors import ConfigError
+
+BACKEND_NAMES = ("numpy", "cupy", "auto")
+DTYPES = ("float64", "float32")
+FFT_LIBRARIES = ("auto", "pyfftw", "scipy")
+FFTW_PLANNERS = ("FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT", "FFTW_EXHAUSTIVE")
+_COMPLEX = {np.dtype("float64"): np.dtype("complex128"), np.dtype("float32"): np.dtype("complex64")}
+
+
+def _import_pyfftw():
+    try:
+        import pyfftw  # noqa: F401
+
+        return pyfftw
+    except Exception:  # missing, or a broken binary: fall back to scipy.fft
+        return None
+
+
+def cupy_available() -> bool:
+    """True when CuPy imports and at least one CUDA device is visible."""
+    try:
+        import cupy
+
+        return int(cupy.cuda.runtime.getDeviceCount()) > 0
+    except Exception:
+        return False
+
+
+@dataclass
+class Backend:
+    """Array module plus FFT / scatter-add primitives.
+
+    Fields
+    ------
+    name : 'numpy' | 'cupy'
+    xp : the array module (numpy or cupy)
+    dtype : real floating dtype of grid fields (float64, or float32 when asked)
+    fft_workers : threads for the CPU FFT (pyFFTW ``threads`` / scipy ``workers``)
+    fft_library : 'pyfftw' | 'scipy' on CPU, 'cupy' on GPU
+    fft_planner : FFTW planner effort for pyFFTW plans
+    """
+
+    name: str
+    xp: ModuleType
+    dtype: Any = np.dtype("float64")
+    fft_workers: int = 1
+    fft_library: str = "scipy"
+    fft_planner: str = "FFTW_ESTIMATE"
+    _plans: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self):
+        self.dtype = np.dtype(self.dtype)
+
+    # ------------------------------------------------------------------ dtypes and allocation
+    @property
+    def complex_dtype(self):
+        """complex128 for float64, complex64 for float32."""
+        return _COMPLEX[self.dtype]
+
+    @property
+    def is_gpu(self) -> bool:
+        return self.name == "cupy"
+
+    def empty(self, shape, dtype=None):
+        """Uninitialised array; SIMD-aligned on CPU when pyFFTW is in use (lets FFTW skip copies)."""
+        dtype = self.dtype if dtype is None else np.dtype(dtype)
+        if self.fft_library == "pyfftw":
+            import pyfftw
+
+            return pyfftw.empty_aligned(shape, dtype=dtype)
+        return self.xp.empty(shape, dtype=dtype)
+
+    def zeros(self, shape, dtype=None):
+        dtype = self.dtype if dtype is None else np.dtype(dtype)
+        if self.fft_library == "pyfftw":
+            import pyfftw
+
+            return pyfftw.zeros_aligned(shape, dtype=dtype)
+        return self.xp.zeros(shape, dtype=dtype)
+
+    def asarray(self, a, dtype=None):
+        """Array on this backend's device (no copy when already there with the right dtype)."""
+        return self.xp.asarray(a, dtype=dtype)
+
+    def asnumpy(self, a):
+        """Host NumPy array (a copy from the device on GPU)."""
+        if self.is_gpu:
+            import cupy
+
+            return cupy.asnumpy(a)
+        return np.asarray(a)
+
+    # ------------------------------------------------------------------ FFTs
+    def rfftn(self, a, axes, out=None):
+        """Unnormalised real-to-complex FFT over ``axes`` (last axis halved to n//2 + 1).
+
+        ``out``, if given, receives the result (must have the right shape and complex dtype).
+        The input is preserved.
+        """
+        axes = _norm_axes(axes, a.ndim)
+        if self.fft_library == "pyfftw":
+            return self._fftw_r2c(a, axes, out)
+        if self.is_gpu:
+            res = self.xp.fft.rfftn(a, axes=axes)
+        else:
+            import scipy.fft as sfft
+
+            res = sfft.rfftn(a, axes=axes, workers=self.fft_workers)
+        return _into(res, out)
+
+    def irfftn(self, a, s, axes, out=None, overwrite_x=False, norm="backward"):
+        """Complex-to-real inverse FFT over ``axes`` with real output lengths ``s``.
+
+        norm='backward' divides by prod(s) (NumPy convention, ``irfftn(rfftn(x)) == x``);
+        norm='forward' leaves the sum unscaled. ``overwrite_x=True`` allows the input to be destroyed
+        (saves a copy with FFTW, whose multi-dimensional c2r always destroys its input).
+        """
+        if norm not in ("backward", "forward"):
+            raise ConfigError(f"norm must be one of ('backward', 'forward'), got {norm!r}")
+        axes = _norm_axes(axes, a.ndim)
+        s = tuple(int(n) for n in s)
+        if self.fft_library == "pyfftw":
+            res = self._fftw_c2r(a, s, axes, out, overwrite_x)
+            if norm == "backward":
+                res *= 1.0 / math.prod(s)
+            return res
+        if self.is_gpu:
+            res = self.xp.fft.irfftn(a, s=s, axes=axes, norm=norm)
+        else:
+            import scipy.fft as sfft
+
+            res = sfft.irfftn(a, s=s, axes=axes, workers=self.fft_workers, norm=norm,
+                              overwrite_x=overwrite_x)
+        return _into(res, out)
+
+    def _plan(self, kind, in_shape, axes, s=None):
+        key = (kind, tuple(in_shape), self.dtype.str, axes, s)
+        plan = self._plans.get(key)
+        if plan is not None:
+            return plan
+        import pyfftw
+
+        rdt, cdt = self.dtype, self.complex_dtype
+        if kind == "r2c":
+            out_shape = list(in_shape)
+            out_shape[axes[-1]] = in_shape[axes[-1]] // 2 + 1
+            ain = pyfftw.empty_aligned(in_shape, dtype=rdt)
+            aout = pyfftw.empty_aligned(tuple(out_shape), dtype=cdt)
+            obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_FORWARD",
+                              flags=(self.fft_planner,), threads=self.fft_workers)
+        else:
+            out_shape = list(in_shape)
+            for ax, n in zip(axes, s):
+                out_shape[ax] = n
+            ain = pyfftw.empty_aligned(in_shape, dtype=cdt)
+            aout = pyfftw.empty_aligned(tuple(out_shape), dtype=rdt)
+            obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_BACKWARD",
+                              flags=(self.fft_planner, "FFTW_DESTROY_INPUT"), threads=self.fft_workers)
+        # keep our own scratch input: pyFFTW's __call__ copies into "the current input array",
+        # which after update_arrays would be a caller's array, so we drive execute() ourselves.
+        plan = (obj, ain, aout, tuple(out_shape))
+        self._plans[key] = plan
+        return plan
+
+    def _fftw_r2c(self, a, axes, out):
+        a = np.asarray(a)
+        if a.dtype != self.dtype:
+            a = a.astype(self.dtype)
+        obj, scratch, own_out, out_shape = self._plan("r2c", a.shape, axes)
+        if not _fits(a, obj.input_alignment):
+            scratch[...] = a
+            a = scratch
+        target = out if (out is not None and _fits(out, obj.output_alignment)
+                         and out.shape == out_shape and out.dtype == self.complex_dtype) else None
+        if target is None:
+            target = self.empty(out_shape, self.complex_dtype)
+        obj.update_arrays(a, target)
+        obj.execute()
+        obj.update_arrays(scratch, own_out)  # do not keep the caller's arrays alive
+        return _into(target, out)
+
+    def _fftw_c2r(self, a, s, axes, out, overwrite_x):
+        a = np.asarray(a)
+        if a.dtype != self.complex_dtype:
+            a = a.astype(self.complex_dtype)
+            overwrite_x = True
+        obj, scratch, own_out, out_shape = self._plan("c2r", a.shape, axes, s)
+        if not overwrite_x or not _fits(a, obj.input_alignment):
+            scratch[...] = a
+            a = scratch
+        target = out if (out is not None and _fits(out, obj.output_alignment)
+                         and out.shape == out_shape and out.dtype == self.dtype) else None
+        if target is None:
+            target = self.empty(out_shape, self.dtype)
+        obj.update_arrays(a, target)
+        obj.execute()
+        obj.update_arrays(scratch, own_out)  # do not keep the caller's arrays alive
+        return _into(target, out)
+
+    # ------------------------------------------------------------------ scatter
+    def scatter_add(self, out_flat, idx_flat, vals):
+        """out_flat[idx] += vals, accumulating repeated indices (the sum of eq. 28).
+
+        CPU: ``np.add.at`` (in NumPy 2.x faster than ``out += bincount(...)`` into a persistent
+        buffer, see module docstring); GPU: ``cupyx.scatter_add``.
+        """
+        if self.is_gpu:
+            import cupyx
+
+            cupyx.scatter_add(out_flat, idx_flat, vals)
+        else:
+            np.add.at(out_flat, idx_flat, vals)
+        return out_flat
+
+    def bincount(self, idx_flat, vals, size):
+        """Fresh array of length ``size`` with the sums of ``vals`` per index (float64 on CPU)."""
+        return self.xp.bincount(idx_flat, weights=vals, minlength=size)
+
+
+def _norm_axes(axes, ndim):
+    return tuple(int(ax) % ndim for ax in axes)
+
+
+def _fits(a, alignment):
+    return (isinstance(a, np.ndarray) and a.flags.c_contiguous
+            and a.ctypes.data % max(int(alignment), 1) == 0)
+
+
+def _into(res, out):
+    if out is None or res is out:
+        return res
+    out[...] = res
+    return out
+
+
+def get_backend(name="numpy", dtype="float64", fft_workers=1, fft_library="auto",
+                fft_planner="FFTW_ESTIMATE") -> Backend:
+    """Build a :class:`Backend`.
+
+    name : 'numpy', 'cupy' or 'auto' ('auto' = CuPy when it imports and a CUDA device exists,
+           else NumPy).
+    dtype : 'float64' (default) or 'float32' (grid fields and FFTs in single precision).
+    fft_workers : threads for the CPU FFT (>= 1).
+    fft_library : CPU only: 'auto' (pyFFTW if importable, else scipy.fft), 'pyfftw' or 'scipy'.
+    fft_planner : FFTW planner effort for pyFFTW ('FFTW_ESTIMATE' plans in ~0.1 s; 'FFTW_MEASURE'
+           takes seconds and was not faster single-threaded at 128^3 on the reference machine).
+    """
+    if not isinstance(name, str) or name.lower() not in BACKEND_NAMES:
+        raise ConfigError(f"backend name must be one of {BACKEND_NAMES}, got {name!r}")
+    name = name.lower()
+    try:
+        dt = np.dtype(dtype)
+    except TypeError:
+        dt = None
+    if dt is None or dt.name not in DTYPES:
+        raise ConfigError(f"dtype must be one of {DTYPES}, got {dtype!r}")
+    if isinstance(fft_workers, bool) or not isinstance(fft_workers, (int, np.integer)) or fft_workers < 1:
+        raise ConfigError(f"fft_workers must be an integer >= 1, got {fft_workers!r}")
+    if fft_library not in FFT_LIBRARIES:
+        raise ConfigError(f"fft_library must be one of {FFT_LIBRARIES}, got {fft_library!r}")
+    if fft_planner not in FFTW_PLANNERS:
+        raise ConfigError(f"fft_planner must be one of {FFTW_PLANNERS}, got {fft_planner!r}")
+
+    if name == "auto":
+        name = "cupy" if cupy_available() else "numpy"
+    if name == "cupy":
+        try:
+            import cupy
+        except Exception as exc:
+            raise ConfigError(f"backend name 'cupy' needs CuPy, which failed to import: {exc}") from exc
+        if not cupy_available():
+            raise ConfigError("backend name 'cupy' needs a CUDA device; none is visible")
+        return Backend("cupy", cupy, dt, int(fft_workers), "cupy", fft_planner)
+
+    lib = fft_library
+    if lib == "auto":
+        lib = "pyfftw" if _import_pyfftw() is not None else "scipy"
+    elif lib == "pyfftw" and _import_pyfftw() is None:
+        raise ConfigError("fft_library 'pyfftw' requested but pyFFTW is not importable; "
+                          "use 'scipy' or 'auto'")
+    return Backend("numpy", np, dt, int(fft_workers), lib, fft_planner)

@@ -1,0 +1,211 @@
+"""Eulerian grid and the Lagrangian <-> Eulerian coupling of the immersed boundary method.
+
+* :class:`Grid`: the periodic box [-L/2, L/2)^3 with N nodes per axis, h = L / N (the Delta x of
+  Sec. IV B), node m at -L/2 + m h.
+* :func:`prepare`: once per time step, the 4 x 4 x 4 = 64 grid nodes each Lagrangian point touches
+  (flattened, periodic) and their tensor-product weights phi(r_1/h) phi(r_2/h) phi(r_3/h) of
+  eqs. (26)-(27). Spreading and interpolation share this :class:`Stencil`, so they are exact adjoints:
+  <S F, u> h^3 = <F, J u>.
+* :func:`spread`: force density of eq. (28), f_m = sum_k F_k delta_h(x_m - X_k) (weights / h^3).
+* :func:`interpolate`: U_k = sum_m u_m delta_h(x_m - X_k) h^3 (eqs. 16 and 29), i.e. the plain
+  weighted sum (the weights of a point sum to 1, so constants are reproduced exactly; the first
+  moment of phi vanishes, so linear fields are too).
+* :class:`Spreader`: spreading into a persistent grid buffer that is cleared sparsely (only the nodes
+  touched by the previous call), which avoids allocating/zeroing 3 N^3 values every step.
+
+Everything is vectorised over points (no Python loop over points; one call per force component).
+Cost on the 2-core reference machine, 2562 points, N = 128: prepare ~2-3 ms, spread ~2.5 ms,
+interpolate ~1 ms, against ~80 ms for the FFT round trip of the Stokes solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError, check_range
+from .kernels import stencil as _kernel_stencil
+
+STENCIL_WIDTH = 4  # Peskin's 4-point kernel, eq. (27)
+STENCIL_SIZE = STENCIL_WIDTH**3
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Periodic cube [-L/2, L/2)^3 with N nodes per axis (N even, >= 8), spacing h = L / N."""
+
+    N: int
+    L: float
+
+    def __post_init__(self):
+        n = check_range("N", self.N, 8, None, integer=True)
+        if n % 2:
+            raise ConfigError(f"N must be an even integer >= 8, got {self.N!r}")
+        L = float(check_range("L", self.L, 0.0, None, lo_open=True))
+        object.__setattr__(self, "N", int(n))
+        object.__setattr__(self, "L", L)
+
+    @property
+    def h(self) -> float:
+        """Grid spacing Delta x = L / N."""
+        return self.L / self.N
+
+    @property
+    def origin(self) -> float:
+        """Coordinate of node 0 on every axis (-L/2)."""
+        return -0.5 * self.L
+
+    @property
+    def shape(self) -> tuple:
+        return (self.N, self.N, self.N)
+
+    @property
+    def field_shape(self) -> tuple:
+        """Shape of a vector field on the grid: (3, N, N, N)."""
+        return (3, self.N, self.N, self.N)
+
+    @property
+    def spectral_shape(self) -> tuple:
+        """Shape of one component after a real FFT over the 3 axes: (N, N, N//2 + 1)."""
+        return (self.N, self.N, self.N // 2 + 1)
+
+    @property
+    def cell_volume(self) -> float:
+        return self.h**3
+
+    def axis_coords(self):
+        """Node coordinates -L/2 + m h, m = 0..N-1 (NumPy, float64)."""
+        return self.origin + self.h * np.arange(self.N)
+
+
+@dataclass
+class Stencil:
+    """Per-step coupling data shared by :func:`spread` and :func:`interpolate`.
+
+    idx : int array (M, 64)  flat index i N^2 + j N + k of the touched nodes (periodic).
+    w   : array (M, 64)      dimensionless weights phi phi phi (each row sums to 1).
+    """
+
+    idx: object
+    w: object
+    N: int
+
+    @property
+    def n_points(self) -> int:
+        return int(self.idx.shape[0])
+
+
+def prepare(X, grid: Grid, backend) -> Stencil:
+    """Stencil of the 4-point kernel (26)-(27) around the Lagrangian points X (M, 3).
+
+    Computed once per time step and shared by spreading (28) and interpolation (29).
+    Points outside the box are wrapped periodically.
+    """
+    xp = backend.xp
+    X = xp.asarray(X, dtype=xp.float64)
+    if X.ndim != 2 or X.shape[1] != 3:
+        raise ConfigError(f"X must have shape (M, 3), got {tuple(X.shape)}")
+    N = grid.N
+    M = X.shape[0]
+    idx, w = _kernel_stencil(X, grid.h, N, grid.origin, xp=xp)  # (M, 3, 4) each
+    ix = idx[:, 0, :] * (N * N)
+    iy = idx[:, 1, :] * N
+    flat = (ix[:, :, None] + iy[:, None, :]).reshape(M, 16)
+    flat = (flat[:, :, None] + idx[:, 2, None, :]).reshape(M, STENCIL_SIZE)
+    wxy = (w[:, 0, :, None] * w[:, 1, None, :]).reshape(M, 16)
+    wt = (wxy[:, :, None] * w[:, 2, None, :]).reshape(M, STENCIL_SIZE)
+    if wt.dtype != backend.dtype:
+        wt = wt.astype(backend.dtype)
+    return Stencil(flat, wt, N)
+
+
+def _check_forces(F, stencil, backend):
+    F = backend.xp.asarray(F)
+    if F.shape != (stencil.n_points, 3):
+        raise ConfigError(f"F must have shape ({stencil.n_points}, 3), got {tuple(F.shape)}")
+    return F
+
+
+def _check_field(a, grid, name):
+    if tuple(a.shape) != grid.field_shape:
+        raise ConfigError(f"{name} must have shape {grid.field_shape}, got {tuple(a.shape)}")
+
+
+def _scatter(F, stencil, grid, backend, out):
+    """out[c] += sum_k F_kc w_k / h^3 at the stencil nodes (out assumed contiguous)."""
+    inv_h3 = 1.0 / grid.h**3
+    dt = out.dtype
+    for c in range(3):
+        scale = (F[:, c] * inv_h3).astype(dt, copy=False)
+        vals = (stencil.w * scale[:, None]).reshape(-1)
+        backend.scatter_add(out[c].reshape(-1), stencil.idx.reshape(-1), vals)
+    return out
+
+
+def spread(F, stencil: Stencil, grid: Grid, backend, out=None):
+    """Force density on the grid, eq. (28): f_m = sum_k F_k delta_h(x_m - X_k).
+
+    F : (M, 3) Lagrangian forces. Returns f of shape (3, N, N, N), dtype backend.dtype, with
+    sum_m f_m h^3 = sum_k F_k. ``out`` (contiguous, shape (3, N, N, N)) is zeroed and filled;
+    for repeated use prefer :class:`Spreader`, which clears only the previously touched nodes.
+    """
+    F = _check_forces(F, stencil, backend)
+    if out is None:
+        out = backend.zeros(grid.field_shape)
+    else:
+        _check_field(out, grid, "out")
+        out[...] = 0
+    return _scatter(F, stencil, grid, backend, out)
+
+
+class Spreader:
+    """Spreading (28) into a persistent, reusable grid buffer.
+
+    ``spread(F, stencil)`` returns the internal buffer (3, N, N, N); it is overwritten by the next
+    call, so consume it (e.g. FFT it) before spreading again and do not write into it. Only the
+    nodes touched by the previous call are reset, which is much cheaper than zeroing 3 N^3 values.
+    """
+
+    def __init__(self, grid: Grid, backend):
+        self.grid = grid
+        self.backend = backend
+        self.buffer = backend.zeros(grid.field_shape)
+        self._touched = None
+
+    def clear(self):
+        self.buffer[...] = 0
+        self._touched = None
+
+    def spread(self, F, stencil: Stencil):
+        F = _check_forces(F, stencil, self.backend)
+        if stencil.N != self.grid.N:
+            raise ConfigError(f"stencil was prepared for N={stencil.N}, grid has N={self.grid.N}")
+        buf = self.buffer
+        if self._touched is not None:
+            for c in range(3):
+                buf[c].reshape(-1)[self._touched] = 0
+        self._touched = stencil.idx.reshape(-1)
+        return _scatter(F, stencil, self.grid, self.backend, buf)
+
+
+def interpolate(u, stencil: Stencil, backend, out=None):
+    """Velocity at the Lagrangian points, eqs. (16)/(29): U_k = sum_m u_m delta_h(x_m - X_k) h^3.
+
+    u : (3, N, N, N) grid field (e.g. the velocity, or Gamma of eq. 29). Returns (M, 3).
+    The h^3 cancels the 1/h^3 of delta_h: it is the weighted sum with the stencil weights.
+    """
+    xp = backend.xp
+    N = stencil.N
+    if tuple(u.shape) != (3, N, N, N):
+        raise ConfigError(f"u must have shape (3, {N}, {N}, {N}), got {tuple(u.shape)}")
+    M = stencil.n_points
+    if out is None:
+        out = xp.empty((M, 3), dtype=u.dtype)
+    idx = stencil.idx
+    w = stencil.w
+    for c in range(3):
+        v = xp.take(u[c].reshape(-1), idx)  # (M, 64) gather
+        v *= w
+        out[:, c] = v.sum(axis=1)
+    return out
