@@ -566,6 +566,11 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         sc = {"t_tau": state.t, "tension": sig, "area": A, "volume": V, "area_drift": A / A0 - 1,
               "volume_drift": V / V0 - 1, "bending_energy": B.bending_energy(X, mem.topo, mem.kappa, geo, mem.area_model),
               "tension_energy": B.tension_energy(geo, mem.ref, mem.Lambda), "flow_sign": flow_sign}
+        if not all(math.isfinite(v) for v in sc.values()):
+            fail("non-finite energy or tension", X)
+        if abs(sc["area_drift"]) > cfg.max_drift or abs(sc["volume_drift"]) > cfg.max_drift:
+            fail(f"area drift {sc['area_drift']:.3%} or volume drift {sc['volume_drift']:.3%} exceeds "
+                 f"max_drift = {cfg.max_drift:g}; lower dt or raise Lambda", X)
         writer.append(be.asnumpy(X), be.asnumpy(sig_l).astype(np.float32), sc)
         state.n_frames += 1
         return sc
@@ -586,11 +591,6 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
             if state.step == state.next_output:
                 sc = frame(X, F, geo)
                 state.next_output = state.step + out_steps
-                if not all(math.isfinite(v) for v in sc.values()):
-                    fail("non-finite energy or tension", X)
-                if abs(sc["area_drift"]) > cfg.max_drift or abs(sc["volume_drift"]) > cfg.max_drift:
-                    fail(f"area drift {sc['area_drift']:.3%} or volume drift {sc['volume_drift']:.3%} exceeds "
-                         f"max_drift = {cfg.max_drift:g}; lower dt or raise Lambda", X)
                 t_show = cfg.chi * (state.t - state.t_reverse) if state.phase == "relax" else cfg.chi * state.t
                 bar.update(state.step, f"{state.phase} gt={t_show:.3f} sigma={sc['tension']:.4g} dA={sc['area_drift']:.1e}")
                 # phase logic at output times only, so it is reproducible on resume
