@@ -403,6 +403,10 @@ def spectra_from_trajectory(
     l_star = float(scal["l_star_t"][i_star]) if i_star >= 0 else float("nan")
     lmn_star = int(lmn[i_star]) if i_star >= 0 else -1
     l_peak = H.characteristic_l(D[i_star], lmn_star, method="peak") if lmn_star >= 3 else float("nan")
+    bias = {"defect_amplitude_ratio": math.nan, "icosahedral_amplitude_ratio": math.nan,
+            "icosahedral_power_ratio": math.nan, "n_defects": -1}
+    if i_star >= 0:
+        bias = H.mesh_bias(vertices_at(i_star), faces, (cen[i_star], ax[i_star], rot[i_star]), Dt[i_star])
 
     coords = {
         "time": ("time", time, dict(sub["time"].attrs) or {"units": "1", "long_name": "gamma_dot (t - t_reverse)"}),
@@ -438,6 +442,12 @@ def spectra_from_trajectory(
         "t_star": _var((), t_star, "1", "t_*: time >= 0 at which Delta_2 is smallest (gamma_dot (t - t_reverse))"),
         "l_star": _var((), l_star, "1", "l_* of eq. (31) at t_*"),
         "l_peak": _var((), l_peak, "1", "dominant wrinkle mode argmax_{3<=l<=l_max} Delta_l at t_* (Sec. V.A)"),
+        "defect_amplitude_ratio": _var((), bias["defect_amplitude_ratio"], "1",
+                                       "rms A_p at mesh defects (valence != 6) / rms A_p, at t_* (mesh bias)"),
+        "icosahedral_amplitude_ratio": _var((), bias["icosahedral_amplitude_ratio"], "1",
+                                            "rms A_p at the 12 icosahedron directions / rms A_p, at t_* (mesh bias)"),
+        "icosahedral_power_ratio": _var((), bias["icosahedral_power_ratio"], "1",
+                                        "mean Delta~_l at l = 6, 10, 12 / mean at l = 8, 14, at t_* (mesh bias)"),
         "l_max_nontrivial": _var((), np.int32(lmn_star), "1", f"largest l with some |u_lm| > {threshold:g} at t_*"),
         "ellipsoid_axes": _var(ta, ax, "R", "semi-axes of the least-squares ellipsoid, ordered by the lab axis "
                                "each is closest to"),
