@@ -161,3 +161,20 @@ def test_cupy_backend_roundtrip():
     out = be.xp.zeros(10)
     be.scatter_add(out, be.asarray(np.array([1, 1, 2])), be.asarray(np.array([1.0, 2.0, 3.0])))
     np.testing.assert_array_equal(be.asnumpy(out)[:3], [0.0, 3.0, 3.0])
+
+
+@pytest.mark.parametrize("lib", CPU_LIBS)
+def test_plan_reuse_never_writes_into_earlier_arrays(lib):
+    """pyFFTW's __call__ would copy unaligned input into the array bound by an earlier call;
+    the backend must never touch a caller's array other than ``out``."""
+    be = get_backend(fft_library=lib)
+    rng = np.random.default_rng(4)
+    a = be.empty((3, 8, 8, 8))
+    a[...] = rng.standard_normal(a.shape)
+    a_keep = a.copy()
+    be.rfftn(a, (1, 2, 3))
+    raw = np.empty(3 * 512 + 1)[1:].reshape(3, 8, 8, 8)  # deliberately misaligned by 8 bytes
+    raw[...] = rng.standard_normal(raw.shape)
+    B = be.rfftn(raw, (1, 2, 3))
+    np.testing.assert_array_equal(a, a_keep)
+    np.testing.assert_allclose(B, np.fft.rfftn(raw, axes=(1, 2, 3)), atol=1e-12)

@@ -5,7 +5,7 @@ import pytest
 
 from vesicle_core.backend import get_backend
 from vesicle_core.errors import ConfigError
-from vesicle_core.ibm import Grid, Spreader, interpolate, prepare, spread
+from vesicle_core.ibm import Coupler, Grid, Spreader, interpolate, prepare, spread
 from vesicle_core.kernels import phi
 
 
@@ -153,3 +153,27 @@ def test_float32_coupling():
     u = rng.standard_normal(g.field_shape).astype(np.float32)
     U = interpolate(u, prepare(X, g, be32), be32)
     assert U.dtype == np.float32
+
+
+def test_coupler_reuses_buffers_and_matches_functional_api(be):
+    g = Grid(16, 4.0)
+    rng = np.random.default_rng(7)
+    cp = Coupler(g, be)
+    ids = None
+    for step in range(3):
+        X = _points(rng, 60, g.L)
+        F = rng.standard_normal((60, 3))
+        u = rng.standard_normal(g.field_shape)
+        st = cp.prepare(X)
+        if ids is not None:
+            assert (id(st.idx), id(st.w)) == ids  # refilled in place
+        ids = (id(st.idx), id(st.w))
+        ref = prepare(X, g, be)
+        np.testing.assert_array_equal(st.idx, ref.idx)
+        np.testing.assert_array_equal(st.w, ref.w)
+        # the spread buffer is cleared correctly although the stencil was overwritten in place
+        np.testing.assert_allclose(cp.spread(F), spread(F, ref, g, be), atol=1e-13)
+        np.testing.assert_allclose(cp.interpolate(u), interpolate(u, ref, be), atol=1e-14)
+    # a different number of points gets fresh arrays
+    st = cp.prepare(_points(rng, 10, g.L))
+    assert st.idx.shape == (10, 64)

@@ -5,10 +5,11 @@ of the Eulerian grid; spreading (28) needs a scatter-add with repeated indices. 
 the library behind those two operations:
 
 * CPU, FFT: pyFFTW plans (cached per shape/dtype/axes) when pyFFTW is importable, else ``scipy.fft``.
-  On the 2-core reference machine a 3 x 128^3 rfftn + irfftn round trip took ~75-90 ms with
-  single-threaded pyFFTW (FFTW_ESTIMATE) against ~130-170 ms with ``scipy.fft`` (workers=1).
+  On the 2-core reference VM (noisy to ~30 %) a 3 x 128^3 rfftn + irfftn round trip took 60-90 ms
+  with single-threaded pyFFTW against 125-170 ms with ``scipy.fft`` (workers=1); at 3 x 256^3,
+  0.77 s (pyFFTW, FFTW_MEASURE plan) against 2.2 s (scipy) and 2.7 s (pyFFTW, FFTW_ESTIMATE).
   ``fft_workers`` defaults to 1 (CALIBRATION.md: ``workers=2`` was not reliably faster at 128^3 and
-  another process shares the cores); pass 2 to try.
+  other processes share the cores); pass 2 to try.
 * CPU, scatter-add: ``np.add.at`` into an existing buffer. With NumPy 2.x it costs ~0.6 ms for
   2562 x 64 entries into a 128^3 grid, whereas ``out += np.bincount(idx, vals, minlength=out.size)``
   costs ~2.2 ms because it builds and adds a full-size temporary. ``bincount`` is offered for the
@@ -37,7 +38,13 @@ from .errors import ConfigError
 BACKEND_NAMES = ("numpy", "cupy", "auto")
 DTYPES = ("float64", "float32")
 FFT_LIBRARIES = ("auto", "pyfftw", "scipy")
-FFTW_PLANNERS = ("FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT", "FFTW_EXHAUSTIVE")
+FFTW_PLANNERS = ("auto", "FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT", "FFTW_EXHAUSTIVE")
+# 'auto' planner: FFTW_ESTIMATE below this many points per transform, FFTW_MEASURE from it on.
+# Measured on the 2-core reference machine (3-component batched r2c): at 128^3 MEASURE (1.4 s of
+# planning) was not faster than ESTIMATE (55-70 ms round trip either way, noise); at 256^3 the
+# ESTIMATE plan took 1.33 s per direction against 0.33 s for MEASURE (3.6 s of planning, once per
+# process and shape thanks to FFTW wisdom).
+AUTO_MEASURE_POINTS = 1 << 23
 _COMPLEX = {np.dtype("float64"): np.dtype("complex128"), np.dtype("float32"): np.dtype("complex64")}
 
 
@@ -71,7 +78,7 @@ class Backend:
     dtype : real floating dtype of grid fields (float64, or float32 when asked)
     fft_workers : threads for the CPU FFT (pyFFTW ``threads`` / scipy ``workers``)
     fft_library : 'pyfftw' | 'scipy' on CPU, 'cupy' on GPU
-    fft_planner : FFTW planner effort for pyFFTW plans
+    fft_planner : FFTW planner effort for pyFFTW plans ('auto': see AUTO_MEASURE_POINTS)
     """
 
     name: str
@@ -79,7 +86,7 @@ class Backend:
     dtype: Any = np.dtype("float64")
     fft_workers: int = 1
     fft_library: str = "scipy"
-    fft_planner: str = "FFTW_ESTIMATE"
+    fft_planner: str = "auto"
     _plans: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
@@ -168,6 +175,13 @@ class Backend:
         return _into(res, out)
 
     def _plan(self, kind, in_shape, axes, s=None):
+        """Cached pyFFTW plan (FFTW object, output shape) for one transform signature.
+
+        The planning arrays are dropped after planning; each call binds the caller's arrays with
+        ``update_arrays`` and runs ``execute()`` (never ``__call__``, which would copy unaligned
+        input into "the current input array", possibly a caller's array from an earlier call).
+        The plan keeps a reference to the arrays of its last call only.
+        """
         key = (kind, tuple(in_shape), self.dtype.str, axes, s)
         plan = self._plans.get(key)
         if plan is not None:
@@ -175,60 +189,62 @@ class Backend:
         import pyfftw
 
         rdt, cdt = self.dtype, self.complex_dtype
+        npts = math.prod(in_shape[ax] for ax in axes) if kind == "r2c" else math.prod(s)
+        effort = self.fft_planner
+        if effort == "auto":
+            effort = "FFTW_MEASURE" if npts >= AUTO_MEASURE_POINTS else "FFTW_ESTIMATE"
+        out_shape = list(in_shape)
         if kind == "r2c":
-            out_shape = list(in_shape)
             out_shape[axes[-1]] = in_shape[axes[-1]] // 2 + 1
             ain = pyfftw.empty_aligned(in_shape, dtype=rdt)
             aout = pyfftw.empty_aligned(tuple(out_shape), dtype=cdt)
             obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_FORWARD",
-                              flags=(self.fft_planner,), threads=self.fft_workers)
+                              flags=(effort,), threads=self.fft_workers)
         else:
-            out_shape = list(in_shape)
             for ax, n in zip(axes, s):
                 out_shape[ax] = n
             ain = pyfftw.empty_aligned(in_shape, dtype=cdt)
             aout = pyfftw.empty_aligned(tuple(out_shape), dtype=rdt)
             obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_BACKWARD",
-                              flags=(self.fft_planner, "FFTW_DESTROY_INPUT"), threads=self.fft_workers)
-        # keep our own scratch input: pyFFTW's __call__ copies into "the current input array",
-        # which after update_arrays would be a caller's array, so we drive execute() ourselves.
-        plan = (obj, ain, aout, tuple(out_shape))
+                              flags=(effort, "FFTW_DESTROY_INPUT"), threads=self.fft_workers)
+        plan = (obj, tuple(out_shape))
         self._plans[key] = plan
         return plan
 
+    def _scratch_for(self, a, dtype):
+        """Aligned scratch copy of ``a`` (buffer cached per shape/dtype)."""
+        key = ("scratch", tuple(a.shape), np.dtype(dtype).str)
+        buf = self._plans.get(key)
+        if buf is None:
+            buf = self.empty(a.shape, dtype)
+            self._plans[key] = buf
+        buf[...] = a
+        return buf
+
     def _fftw_r2c(self, a, axes, out):
         a = np.asarray(a)
-        if a.dtype != self.dtype:
-            a = a.astype(self.dtype)
-        obj, scratch, own_out, out_shape = self._plan("r2c", a.shape, axes)
-        if not _fits(a, obj.input_alignment):
-            scratch[...] = a
-            a = scratch
+        obj, out_shape = self._plan("r2c", a.shape, axes)
+        if a.dtype != self.dtype or not _fits(a, obj.input_alignment):
+            a = self._scratch_for(a, self.dtype)
         target = out if (out is not None and _fits(out, obj.output_alignment)
                          and out.shape == out_shape and out.dtype == self.complex_dtype) else None
         if target is None:
             target = self.empty(out_shape, self.complex_dtype)
         obj.update_arrays(a, target)
         obj.execute()
-        obj.update_arrays(scratch, own_out)  # do not keep the caller's arrays alive
         return _into(target, out)
 
     def _fftw_c2r(self, a, s, axes, out, overwrite_x):
         a = np.asarray(a)
-        if a.dtype != self.complex_dtype:
-            a = a.astype(self.complex_dtype)
-            overwrite_x = True
-        obj, scratch, own_out, out_shape = self._plan("c2r", a.shape, axes, s)
-        if not overwrite_x or not _fits(a, obj.input_alignment):
-            scratch[...] = a
-            a = scratch
+        obj, out_shape = self._plan("c2r", a.shape, axes, s)
+        if not overwrite_x or a.dtype != self.complex_dtype or not _fits(a, obj.input_alignment):
+            a = self._scratch_for(a, self.complex_dtype)
         target = out if (out is not None and _fits(out, obj.output_alignment)
                          and out.shape == out_shape and out.dtype == self.dtype) else None
         if target is None:
             target = self.empty(out_shape, self.dtype)
         obj.update_arrays(a, target)
         obj.execute()
-        obj.update_arrays(scratch, own_out)  # do not keep the caller's arrays alive
         return _into(target, out)
 
     # ------------------------------------------------------------------ scatter
@@ -268,7 +284,7 @@ def _into(res, out):
 
 
 def get_backend(name="numpy", dtype="float64", fft_workers=1, fft_library="auto",
-                fft_planner="FFTW_ESTIMATE") -> Backend:
+                fft_planner="auto") -> Backend:
     """Build a :class:`Backend`.
 
     name : 'numpy', 'cupy' or 'auto' ('auto' = CuPy when it imports and a CUDA device exists,
@@ -276,8 +292,9 @@ def get_backend(name="numpy", dtype="float64", fft_workers=1, fft_library="auto"
     dtype : 'float64' (default) or 'float32' (grid fields and FFTs in single precision).
     fft_workers : threads for the CPU FFT (>= 1).
     fft_library : CPU only: 'auto' (pyFFTW if importable, else scipy.fft), 'pyfftw' or 'scipy'.
-    fft_planner : FFTW planner effort for pyFFTW ('FFTW_ESTIMATE' plans in ~0.1 s; 'FFTW_MEASURE'
-           takes seconds and was not faster single-threaded at 128^3 on the reference machine).
+    fft_planner : FFTW planner effort for pyFFTW: 'auto' (default: FFTW_ESTIMATE below 2^23 points
+           per transform, FFTW_MEASURE from 256^3 on, where it was 4x faster), or an explicit
+           'FFTW_ESTIMATE' / 'FFTW_MEASURE' / 'FFTW_PATIENT' / 'FFTW_EXHAUSTIVE'.
     """
     if not isinstance(name, str) or name.lower() not in BACKEND_NAMES:
         raise ConfigError(f"backend name must be one of {BACKEND_NAMES}, got {name!r}")

@@ -12,10 +12,15 @@
   moment of phi vanishes, so linear fields are too).
 * :class:`Spreader`: spreading into a persistent grid buffer that is cleared sparsely (only the nodes
   touched by the previous call), which avoids allocating/zeroing 3 N^3 values every step.
+* :class:`Coupler`: per-run workspace bundling prepare / spread / interpolate with reused buffers
+  (the form a time stepper should use).
 
 Everything is vectorised over points (no Python loop over points; one call per force component).
-Cost on the 2-core reference machine, 2562 points, N = 128: prepare ~2-3 ms, spread ~2.5 ms,
-interpolate ~1 ms, against ~80 ms for the FFT round trip of the Stokes solve.
+Cost on the 2-core reference VM (timed inside a full step, i.e. with caches evicted by the FFT),
+N = 128: 2562 points: prepare ~1.5 ms (about 1 ms of it kernels.stencil), spread ~2 ms,
+interpolate ~1 ms; 10242 points: ~6, ~8, ~4 ms; against 60-70 ms for the FFT round trip.
+Fresh (M, 64) arrays every step cost page faults comparable to the arithmetic, hence the
+``out=`` / ``work=`` arguments and the Coupler.
 """
 
 from __future__ import annotations
@@ -83,8 +88,9 @@ class Grid:
 class Stencil:
     """Per-step coupling data shared by :func:`spread` and :func:`interpolate`.
 
-    idx : int array (M, 64)  flat index i N^2 + j N + k of the touched nodes (periodic).
-    w   : array (M, 64)      dimensionless weights phi phi phi (each row sums to 1).
+    idx : int array (M, 64)  flat index i N^2 + j N + k of the touched nodes (periodic); the 64
+                             columns run over the offsets (c, a, b) along (z, x, y).
+    w   : array (M, 64)      matching dimensionless weights phi phi phi (each row sums to 1).
     """
 
     idx: object
@@ -96,11 +102,13 @@ class Stencil:
         return int(self.idx.shape[0])
 
 
-def prepare(X, grid: Grid, backend) -> Stencil:
+def prepare(X, grid: Grid, backend, out: Stencil | None = None) -> Stencil:
     """Stencil of the 4-point kernel (26)-(27) around the Lagrangian points X (M, 3).
 
     Computed once per time step and shared by spreading (28) and interpolation (29).
-    Points outside the box are wrapped periodically.
+    Points outside the box are wrapped periodically. ``out``: a Stencil of the same size whose
+    arrays are overwritten in place (saves page-faulting two fresh (M, 64) arrays every step,
+    which on the reference VM cost about as much as computing them).
     """
     xp = backend.xp
     X = xp.asarray(X, dtype=xp.float64)
@@ -109,15 +117,26 @@ def prepare(X, grid: Grid, backend) -> Stencil:
     N = grid.N
     M = X.shape[0]
     idx, w = _kernel_stencil(X, grid.h, N, grid.origin, xp=xp)  # (M, 3, 4) each
+    dt = np.dtype(backend.dtype)
+    if (out is not None and tuple(out.idx.shape) == (M, STENCIL_SIZE) and out.idx.dtype == xp.intp
+            and out.w.dtype == dt and out.idx.flags.c_contiguous and out.w.flags.c_contiguous):
+        flat, wt = out.idx, out.w
+        out.N = N
+    else:
+        out = None
+        flat = xp.empty((M, STENCIL_SIZE), dtype=xp.intp)
+        wt = xp.empty((M, STENCIL_SIZE), dtype=dt)
+    # Column order within a row is (c, a, b) with a, b, c the offsets along x, y, z: any fixed
+    # order of the 64 entries works (spread and interpolate only pair idx with w), and putting
+    # the 16 (a, b) pairs innermost gives NumPy 16-long inner loops instead of 4-long ones
+    # (~3x faster than the (a, b, c) broadcast).
     ix = idx[:, 0, :] * (N * N)
     iy = idx[:, 1, :] * N
-    flat = (ix[:, :, None] + iy[:, None, :]).reshape(M, 16)
-    flat = (flat[:, :, None] + idx[:, 2, None, :]).reshape(M, STENCIL_SIZE)
-    wxy = (w[:, 0, :, None] * w[:, 1, None, :]).reshape(M, 16)
-    wt = (wxy[:, :, None] * w[:, 2, None, :]).reshape(M, STENCIL_SIZE)
-    if wt.dtype != backend.dtype:
-        wt = wt.astype(backend.dtype)
-    return Stencil(flat, wt, N)
+    sab = (ix[:, :, None] + iy[:, None, :]).reshape(M, 1, 16)
+    xp.add(sab, idx[:, 2, :, None], out=flat.reshape(M, STENCIL_WIDTH, 16))
+    pab = (w[:, 0, :, None] * w[:, 1, None, :]).reshape(M, 1, 16).astype(dt, copy=False)
+    xp.multiply(pab, w[:, 2, :, None].astype(dt, copy=False), out=wt.reshape(M, STENCIL_WIDTH, 16))
+    return out if out is not None else Stencil(flat, wt, N)
 
 
 def _check_forces(F, stencil, backend):
@@ -132,15 +151,25 @@ def _check_field(a, grid, name):
         raise ConfigError(f"{name} must have shape {grid.field_shape}, got {tuple(a.shape)}")
 
 
-def _scatter(F, stencil, grid, backend, out):
-    """out[c] += sum_k F_kc w_k / h^3 at the stencil nodes (out assumed contiguous)."""
+def _work(work, shape, dtype, xp):
+    """Reuse ``work`` when it has the right shape/dtype, else allocate."""
+    if work is not None and tuple(work.shape) == tuple(shape) and work.dtype == dtype:
+        return work
+    return xp.empty(shape, dtype=dtype)
+
+
+def _scatter(F, stencil, grid, backend, out, work=None):
+    """out[c] += sum_k F_kc w_k / h^3 at the stencil nodes (out contiguous). Returns (out, work)."""
+    xp = backend.xp
     inv_h3 = 1.0 / grid.h**3
     dt = out.dtype
+    vals = _work(work, stencil.w.shape, dt, xp)
+    idx = stencil.idx.reshape(-1)
     for c in range(3):
         scale = (F[:, c] * inv_h3).astype(dt, copy=False)
-        vals = (stencil.w * scale[:, None]).reshape(-1)
-        backend.scatter_add(out[c].reshape(-1), stencil.idx.reshape(-1), vals)
-    return out
+        xp.multiply(stencil.w, scale[:, None], out=vals)
+        backend.scatter_add(out[c].reshape(-1), idx, vals.reshape(-1))
+    return out, vals
 
 
 def spread(F, stencil: Stencil, grid: Grid, backend, out=None):
@@ -156,7 +185,7 @@ def spread(F, stencil: Stencil, grid: Grid, backend, out=None):
     else:
         _check_field(out, grid, "out")
         out[...] = 0
-    return _scatter(F, stencil, grid, backend, out)
+    return _scatter(F, stencil, grid, backend, out)[0]
 
 
 class Spreader:
@@ -164,7 +193,9 @@ class Spreader:
 
     ``spread(F, stencil)`` returns the internal buffer (3, N, N, N); it is overwritten by the next
     call, so consume it (e.g. FFT it) before spreading again and do not write into it. Only the
-    nodes touched by the previous call are reset, which is much cheaper than zeroing 3 N^3 values.
+    nodes touched by the previous call are reset (their indices are copied, so the stencil may be
+    refilled in place by ``prepare(..., out=stencil)``), which is much cheaper than zeroing
+    3 N^3 values; the (M, 64) work arrays are reused too.
     """
 
     def __init__(self, grid: Grid, backend):
@@ -172,6 +203,7 @@ class Spreader:
         self.backend = backend
         self.buffer = backend.zeros(grid.field_shape)
         self._touched = None
+        self._work = None
 
     def clear(self):
         self.buffer[...] = 0
@@ -185,15 +217,21 @@ class Spreader:
         if self._touched is not None:
             for c in range(3):
                 buf[c].reshape(-1)[self._touched] = 0
-        self._touched = stencil.idx.reshape(-1)
-        return _scatter(F, stencil, self.grid, self.backend, buf)
+        idx = stencil.idx.reshape(-1)
+        if self._touched is not None and self._touched.shape == idx.shape:
+            self._touched[...] = idx
+        else:
+            self._touched = idx.copy()
+        _, self._work = _scatter(F, stencil, self.grid, self.backend, buf, self._work)
+        return buf
 
 
-def interpolate(u, stencil: Stencil, backend, out=None):
+def interpolate(u, stencil: Stencil, backend, out=None, work=None):
     """Velocity at the Lagrangian points, eqs. (16)/(29): U_k = sum_m u_m delta_h(x_m - X_k) h^3.
 
     u : (3, N, N, N) grid field (e.g. the velocity, or Gamma of eq. 29). Returns (M, 3).
     The h^3 cancels the 1/h^3 of delta_h: it is the weighted sum with the stencil weights.
+    ``work``: optional (M, 64) array of u's dtype reused for the gather.
     """
     xp = backend.xp
     N = stencil.N
@@ -204,8 +242,40 @@ def interpolate(u, stencil: Stencil, backend, out=None):
         out = xp.empty((M, 3), dtype=u.dtype)
     idx = stencil.idx
     w = stencil.w
+    v = _work(work, idx.shape, u.dtype, xp)
     for c in range(3):
-        v = xp.take(u[c].reshape(-1), idx)  # (M, 64) gather
-        v *= w
-        out[:, c] = v.sum(axis=1)
+        if xp is np:  # mode='clip' avoids NumPy's buffered out= path (indices are valid anyway)
+            np.take(u[c].reshape(-1), idx, out=v, mode="clip")  # (M, 64) gather
+        else:
+            xp.take(u[c].reshape(-1), idx, out=v)
+        out[:, c] = xp.einsum("ij,ij->i", v, w)  # no BLAS involved for this contraction
     return out
+
+
+class Coupler:
+    """Per-run workspace for the IBM coupling: prepare (26-27), spread (28), interpolate (29).
+
+    Reuses the stencil arrays, the spreading grid buffer and the (M, 64) work arrays from step to
+    step (fresh arrays cost page faults every step). The Stencil returned by :meth:`prepare` and
+    the grid returned by :meth:`spread` are overwritten by the next call of the same method.
+    """
+
+    def __init__(self, grid: Grid, backend):
+        self.grid = grid
+        self.backend = backend
+        self.spreader = Spreader(grid, backend)
+        self._stencil = None
+        self._work = None
+
+    def prepare(self, X) -> Stencil:
+        self._stencil = prepare(X, self.grid, self.backend, out=self._stencil)
+        return self._stencil
+
+    def spread(self, F, stencil: Stencil | None = None):
+        return self.spreader.spread(F, self._stencil if stencil is None else stencil)
+
+    def interpolate(self, u, stencil: Stencil | None = None, out=None):
+        st = self._stencil if stencil is None else stencil
+        if self._work is None or self._work.shape != st.idx.shape or self._work.dtype != u.dtype:
+            self._work = self.backend.xp.empty(st.idx.shape, dtype=u.dtype)
+        return interpolate(u, st, self.backend, out=out, work=self._work)

@@ -39,7 +39,10 @@ folded into precomputed symbol arrays (the inverse FFT runs unnormalised); the p
 place, slab by slab along k_1 (cache-sized chunks), computing g.f once per mode, on the interleaved
 real view of the complex spectrum (symbols repeated x2 so every NumPy loop is a contiguous
 real SIMD loop). The spectral workspace is owned by the solver; pass ``out=`` to reuse an output
-grid buffer and avoid page-faulting a fresh 3 N^3 array every step.
+grid buffer and avoid page-faulting a fresh 3 N^3 array every step. Measured at N = 128 (2 cores):
+the steady projection/scaling adds 10-15 ms to the 60-70 ms FFT round trip (~80 ms to 110 ms at
+256^3 against ~0.8 s); the finite-density update costs about twice the steady one. Changing dt
+rebuilds the per-dt symbol arrays (exp/expm1 over N^3/2 modes), so keep dt fixed where possible.
 """
 
 from __future__ import annotations
