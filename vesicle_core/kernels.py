@@ -59,8 +59,14 @@ def stencil(X, h, N, origin=0.0, xp=None):
     """
     xp = xp or _xp_of(X)
     s = (X - origin) / h
-    base = xp.floor(s).astype(xp.int64) - 1
-    offs = xp.arange(4, dtype=xp.int64)
-    j = base[..., None] + offs  # (M, 3, 4)
-    w = phi(s[..., None] - j, xp)
+    fl = xp.floor(s)
+    r = s - fl  # in [0, 1): the point lies between nodes floor(s) and floor(s) + 1
+    base = fl.astype(xp.int64) - 1
+    # closed form of phi at the four distances 1 + r, r, 1 - r, 2 - r (one square root per axis
+    # instead of evaluating eq. (27) piecewise 4 times; identical values, ~10x cheaper)
+    q = xp.sqrt(xp.clip(1.0 + 4.0 * r * (1.0 - r), 0.0, None))
+    a = 3.0 - 2.0 * r
+    b = 1.0 + 2.0 * r
+    w = xp.stack([a - q, a + q, b + q, b - q], axis=-1) * 0.125
+    j = base[..., None] + xp.arange(4, dtype=xp.int64)  # (M, 3, 4)
     return j % N, w

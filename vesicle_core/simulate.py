@@ -192,7 +192,7 @@ class IBMSolver:
 
     def __init__(self, faces, X0, cfg: RunConfig):
         from .backend import get_backend
-        from .ibm import Grid
+        from .ibm import Coupler, Grid
         from .stokes import StokesSolver
 
         self.cfg = cfg
@@ -201,6 +201,8 @@ class IBMSolver:
         self.xp = xp
         self.grid = Grid(cfg.N, cfg.L)
         self.stokes = StokesSolver(self.grid, self.be, rho_bar=cfg.rho_bar)
+        self.coupler = Coupler(self.grid, self.be)  # reused stencil and grid buffers (no page faults per step)
+        self._grid_buf = self.be.empty(self.grid.field_shape)
         self.membrane = B.Membrane.from_mesh(
             xp.asarray(X0, dtype=xp.float64), faces, xp=xp, Lambda=cfg.Lambda_eff, K_volume=cfg.K_volume,
             K_area=cfg.K_area, area_model=cfg.area_model,
@@ -209,17 +211,21 @@ class IBMSolver:
     def forces(self, X):
         return self.membrane.forces(X)
 
-    def induced_displacement(self, X, F, dt, advance=True):
-        """J Gamma: the induced displacement over dt (steady Stokes: J u_ind dt)."""
-        from . import ibm
+    def induced_displacement(self, X, F, dt, advance=True, same_points=False):
+        """J Gamma: the induced displacement of the vertices over dt (steady Stokes: J u_ind dt).
 
-        st = ibm.prepare(X, self.grid, self.be)
-        f = ibm.spread(F, st, self.grid, self.be)
-        if self.cfg.rho_bar > 0 and advance:
-            G = self.stokes.step(f, dt)
+        ``advance``: at finite Re, step the stored fluid state (False: steady response, state untouched).
+        ``same_points``: X is the same as in the previous call, so its stencil is reused.
+        """
+        if not same_points:
+            self.coupler.prepare(X)
+        f = self.coupler.spread(F)
+        if self.cfg.rho_bar > 0 and not advance:
+            G = self.stokes.velocity(f, out=self._grid_buf)
+            G *= dt
         else:
-            G = self.stokes.velocity(f) * dt
-        return ibm.interpolate(G, st, self.be)
+            G = self.stokes.step(f, dt, out=self._grid_buf)
+        return self.coupler.interpolate(G)
 
     def membrane_velocity(self, X):
         """Induced velocity of the membrane, steady Stokes, no background flow (for dt estimates)."""
@@ -427,9 +433,10 @@ def _projected_displacement(solver: IBMSolver, state: State, X, F, geo, dt, rate
     xp = solver.xp
     cfg = solver.cfg
     gradA = -geo.H  # (V, 3): dA/dX = -H, eq. (24)
-    if state.w is None or state.step % cfg.projection_refresh == 0:
+    refresh = state.w is None or state.step % cfg.projection_refresh == 0
+    if refresh:
         state.w = solver.induced_displacement(X, gradA, 1.0, advance=False)
-    dX = solver.induced_displacement(X, F - state.sigma_g * gradA, dt)
+    dX = solver.induced_displacement(X, F - state.sigma_g * gradA, dt, same_points=refresh)
     if cfg.chi > 0:
         dX = dX + background_velocity(X, rate) * dt
     A = float(geo.area.sum())
