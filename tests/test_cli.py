@@ -73,3 +73,9 @@ def test_fit_command_names_bad_file(tmp_path, capsys):
     bad = tmp_path / "nothing.nc"
     assert main(["fit", str(bad), "-o", str(tmp_path / "f.nc")]) == 2
     assert "nothing.nc" in capsys.readouterr().err
+
+
+def test_bench_command_runs(capsys):
+    assert main(["bench", "--sizes", "16", "--levels", "1", "--repeats", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "step/fft" in out and "forces" in out

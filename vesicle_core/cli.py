@@ -246,8 +246,25 @@ def _cmd_fit(a):
     return 0
 
 
+# --------------------------------------------------------------------------- bench
+def _add_bench(sub):
+    p = sub.add_parser("bench", help="time one IBM step and its parts against the bare FFT (see vesicle_core.bench)")
+    p.add_argument("--sizes", type=_int_in("--sizes", 8, 2048), nargs="+", default=[32, 64, 128], help="grid sizes N")
+    p.add_argument("--levels", type=_int_in("--levels", 0, 8), nargs="+", default=[4, 5], help="icosphere levels")
+    p.add_argument("--backend", choices=("numpy", "cupy", "auto"), default="numpy")
+    p.add_argument("--repeats", type=_int_in("--repeats", 1, 10000), default=10)
+    p.set_defaults(func=_cmd_bench)
+
+
+def _cmd_bench(a):
+    from .bench import main as bench_main
+
+    bench_main(a.sizes, a.levels, a.backend, a.repeats)
+    return 0
+
+
 # --------------------------------------------------------------------------- entry point
-_ADDERS = [_add_mesh, _add_run, _add_decompose, _add_theory, _add_fit]
+_ADDERS = [_add_mesh, _add_run, _add_decompose, _add_theory, _add_fit, _add_bench]
 
 
 def build_parser():
