@@ -81,7 +81,7 @@ def box_comparison(traj_small, traj_large) -> dict:
     tb = traj_large["time"].values
     common = np.intersect1d(np.round(ta, 9), np.round(tb, 9))
     if len(common) < 3:
-        raise ValueError("the two box runs share fewer than 3 output times")
+        raise ValueError("the two box runs share fewer than 3 output times: run both with the same fixed dt")
 
     def pos(ds, t):
         i = int(np.argmin(np.abs(ds["time"].values - t)))
