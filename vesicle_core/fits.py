@@ -424,10 +424,16 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     for ds in datasets:
         kind = "theory" if "face_tension_mean" not in ds else "simulation"
         try:
-            delta, S = float(ds.attrs["delta"]), float(ds.attrs["S"])
+            # simulations: the target Delta of the mesh (the meshed value differs by the faceting)
+            delta = float(ds.attrs.get("mesh_target_delta", ds.attrs["delta"]))
+            S = float(ds.attrs["S"])
         except KeyError as exc:
             raise ConfigError(f"dataset {ds.attrs.get('case_id', '?')} lacks the attribute {exc}") from None
-        row = {"kind": kind, "delta": delta, "S": S, "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
+        # a sweep group is one resolution: cases at other N or vertex counts (convergence copies, box tests)
+        # are fitted separately
+        N = int(ds.attrs.get("N", 0)) if kind == "simulation" else 0
+        nv = int(ds.attrs.get("mesh_n_vertices", ds.attrs.get("n_node", 0))) if kind == "simulation" else 0
+        row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv, "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
                "l_star": float(ds["l_star"]), "l_peak": float(ds["l_peak"]) if "l_peak" in ds else math.nan,
                "t_star": float(ds["t_star"]), "decay_exponent": math.nan, "decay_ci_low": math.nan,
                "decay_ci_high": math.nan, "t_stage2_start": math.nan, "t_stage2_end": math.nan, "note": ""}
@@ -445,15 +451,17 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     if not rows:
         raise ConfigError("no datasets to fit")
     case = {k: ("case", np.array([r[k] for r in rows])) for k in rows[0]}
-    groups = sorted({(r["kind"], r["delta"]) for r in rows})
-    gdata = {k: [] for k in ("group_kind", "group_delta", "n_cases")}
+    groups = sorted({(r["kind"], r["delta"], r["N"], r["vertices"]) for r in rows})
+    gdata = {k: [] for k in ("group_kind", "group_delta", "group_N", "group_vertices", "n_cases")}
     for name in ("l_star", "l_peak"):
         for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
             gdata[f"{name}_{k}"] = []
-    for kind, delta in groups:
-        sel = [r for r in rows if r["kind"] == kind and r["delta"] == delta]
+    for kind, delta, N, nv in groups:
+        sel = [r for r in rows if (r["kind"], r["delta"], r["N"], r["vertices"]) == (kind, delta, N, nv)]
         gdata["group_kind"].append(kind)
         gdata["group_delta"].append(delta)
+        gdata["group_N"].append(N)
+        gdata["group_vertices"].append(nv)
         gdata["n_cases"].append(len(sel))
         for name in ("l_star", "l_peak"):
             pts = [(r["S"], r[name]) for r in sel if np.isfinite(r[name]) and r[name] > 0]

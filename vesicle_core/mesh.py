@@ -317,6 +317,7 @@ def make_vesicle(
     m.check()
     m.attrs.update(
         family=family,
+        n_vertices=m.n_vertices,
         level=int(level) if family == "icosphere" else -1,
         seed=int(seed) if family == "quasiuniform" else -1,
         lloyd_steps=int(lloyd_steps) if family == "quasiuniform" else 0,
