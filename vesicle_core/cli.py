@@ -231,7 +231,10 @@ def _cmd_fit(a):
     dss = []
     for path in a.inputs:
         ds = read_dataset(path, required=("l_star", "t_star", "sigma"))
-        ds.attrs.setdefault("case_id", os.path.basename(os.path.dirname(os.path.abspath(path))))
+        # runs live in results/runs/<case_id>/spectra.nc, PA references in results/theory/<theory_id>.nc
+        parent = os.path.basename(os.path.dirname(os.path.abspath(path)))
+        stem = os.path.splitext(os.path.basename(path))[0]
+        ds.attrs.setdefault("case_id", stem if stem not in ("spectra", "theory") else parent)
         dss.append(ds)
     out = sweep_fit_dataset(dss, confidence=a.confidence)
     out.attrs["inputs"] = " ".join(a.inputs)
@@ -264,6 +267,12 @@ def _cmd_bench(a):
 
 
 # --------------------------------------------------------------------------- entry point
+def _post_adders():
+    from .cli_post import add_catalog, add_figures
+
+    return [add_figures, add_catalog]
+
+
 _ADDERS = [_add_mesh, _add_run, _add_decompose, _add_theory, _add_fit, _add_bench]
 
 
@@ -273,7 +282,7 @@ def build_parser():
 
     parser.add_argument("--version", action="version", version=f"vesicle_core {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for add in _ADDERS:
+    for add in _ADDERS + _post_adders():
         add(sub)
     return parser
 

@@ -1,0 +1,219 @@
+"""Catalog: ids, catalog.csv + ESM JSON, open_sweep on synthetic spectra/theory files (layouts of datasets.py and
+theory.py, built here so the catalog is tested on its own)."""
+
+import argparse
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from vesicle_core import catalog as C
+from vesicle_core.units import chi_from_S
+
+
+# --------------------------------------------------------------------------- synthetic datasets
+def synthetic_spectra(delta, S, n_time=21, t0=-0.4, t1=1.0, l_max=12, kind="spectra", N=32, level=3, seed=0):
+    """A small dataset with the layout of spectra.nc (kind="spectra") or theory.nc (kind="theory")."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(t0, t1, n_time)
+    l = np.arange(l_max + 1)
+    m = np.arange(-l_max, l_max + 1)
+    invalid = np.abs(m)[None, :] > l[:, None]
+    ur = rng.normal(size=(n_time, l.size, m.size)) * 1e-2
+    ui = rng.normal(size=(n_time, l.size, m.size)) * 1e-2
+    ur[:, invalid] = np.nan
+    ui[:, invalid] = np.nan
+    D = np.nansum(ur**2 + ui**2, axis=2)
+    lstar = 3.0 + S ** (1.0 / 3.0) / 2.0
+    data = {
+        "u_real": (("time", "l", "m"), ur),
+        "u_imag": (("time", "l", "m"), ui),
+        "Delta_l": (("time", "l"), D),
+        "sigma": (("time",), np.where(t < 0, 50.0, -20.0 * (1 + t) ** -0.8)),
+        "l_star_t": (("time",), np.full(n_time, lstar)),
+        "t_star": ((), 0.25),
+        "l_star": ((), lstar),
+        "l_peak": ((), round(lstar)),
+        "l_max_nontrivial": ((), np.int32(l_max)),
+    }
+    if kind == "spectra":
+        data.update({
+            "A_p_bar": (("time",), np.linspace(0, 1e-3, n_time)),
+            "Delta_tilde_l": (("time", "l"), D * 0.5),
+            "face_tension_mean": (("time",), np.zeros(n_time)),
+            "face_tension_std": (("time",), np.ones(n_time)),
+            "A_p_map": (("time", "theta", "phi"), rng.normal(size=(n_time, 4, 8))),
+        })
+    coords = {"time": t, "l": l, "m": m}
+    if kind == "spectra":
+        coords.update(theta=np.linspace(0.2, 3.0, 4), phi=np.linspace(-3.0, 3.0, 8))
+    attrs = {"delta": delta + 1e-13, "S": S * (1 + 1e-9), "chi": chi_from_S(S, delta),
+             "source": "vesicle_core 9.9.9", "history": "2026-01-02T03:04:05+00:00 vesicle decompose x"}
+    if kind == "spectra":
+        attrs.update(N=N, mesh_level=level, mesh_family="icosphere", backend="numpy", mesh_delta=delta + 1e-13,
+                     mesh_target_delta=delta)
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def write_sweep(root, points, *, N=32, level=3, theory=True):
+    """Write results/runs/<id>/spectra.nc (+ theory/<id>.nc, a mesh and a fit-like file) under ``root``;
+    returns the written paths."""
+    paths = []
+    for i, (delta, S, n_time) in enumerate(points):
+        cid = C.case_id(delta, S=S, N=N, level=level)
+        p = root / "runs" / cid / "spectra.nc"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        synthetic_spectra(delta, S, n_time=n_time, N=N, level=level, seed=i).to_netcdf(p)
+        paths.append(p)
+        if theory:
+            tp = root / "theory" / f"{C.theory_id(delta, S)}.nc"
+            tp.parent.mkdir(parents=True, exist_ok=True)
+            synthetic_spectra(delta, S, n_time=51, t0=0.0, t1=1.5, l_max=20, kind="theory").to_netcdf(tp)
+            paths.append(tp)
+    mp = root / "meshes" / f"{C.mesh_id(points[0][0], level=level)}.nc"
+    mp.parent.mkdir(parents=True, exist_ok=True)
+    xr.Dataset(
+        {"node_x": ("n_node", np.zeros(4)), "node_y": ("n_node", np.zeros(4)), "node_z": ("n_node", np.zeros(4)),
+         "face_node_connectivity": (("n_face", "n_vertex_per_face"), np.zeros((4, 3), dtype="i4"))},
+        attrs={"family": "icosphere", "level": level, "delta": points[0][0], "target_delta": points[0][0],
+               "source": "vesicle_core 9.9.9"},
+    ).to_netcdf(mp)
+    paths.append(mp)
+    fp = root / "fits" / "lstar_vs_S.nc"
+    fp.parent.mkdir(parents=True, exist_ok=True)
+    xr.Dataset({"l_star_exponent": ("group", [0.39])}).to_netcdf(fp)
+    paths.append(fp)
+    return paths
+
+
+# --------------------------------------------------------------------------- ids
+@pytest.mark.parametrize("kwargs, expect", [
+    (dict(delta=0.116, S=553, N=64, level=4), "D0.116_S553_N64_L4"),
+    (dict(delta=0.116, S=1106.5, N=32, level=3), "D0.116_S1106.5_N32_L3"),
+    (dict(delta=0.997, chi=83.5, N=512, family="quasiuniform", n_vertices=26070), "D0.997_chi83.5_N512_Q26070"),
+    (dict(delta=0.116, S=553, N=16, level=2, tag="fine-dt"), "D0.116_S553_N16_L2_fine-dt"),
+])
+def test_case_ids_are_readable_and_parse_back(kwargs, expect):
+    cid = C.case_id(**kwargs)
+    assert cid == expect
+    p = C.parse_case_id(cid)
+    assert p["Delta"] == kwargs["delta"] and p["N"] == kwargs["N"]
+    if "S" in kwargs:
+        assert p["S"] == kwargs["S"] and p["chi"] == pytest.approx(chi_from_S(kwargs["S"], kwargs["delta"]))
+    else:
+        assert p["chi"] == kwargs["chi"] and p["S"] > 0
+
+
+def test_ids_do_not_depend_on_float_noise_and_reject_bad_input():
+    assert C.case_id(0.116, S=553.0000000001, N=32, level=3) == "D0.116_S553_N32_L3"
+    assert C.theory_id(0.116, 2224.0) == "D0.116_S2224"
+    assert C.mesh_id(0.116, "icosphere", 3) == "icosphere_L3_D0.116"
+    assert C.mesh_id(0.997, "quasiuniform", 5, 26070, 0) == "quasiuniform_n26070_s0_D0.997"
+    assert C.parse_case_id("icosphere_L3_D0.116") is None
+    assert C.parse_case_id("D0.116_S553")["N"] is None
+    with pytest.raises(C.ConfigError):
+        C.case_id(0.116, S=1, chi=1)
+    with pytest.raises(C.ConfigError, match="tag"):
+        C.case_id(0.116, S=1, tag="bad tag")
+
+
+# --------------------------------------------------------------------------- catalog files
+def test_write_catalog_rows_and_esm_json(tmp_path):
+    root = tmp_path / "results"
+    paths = write_sweep(root, [(0.116, 553.0, 21), (0.116, 1106.5, 31)])
+    rows = C.write_catalog(paths, root / "catalog.csv")
+    assert len(rows) == len(paths)
+    with open(root / "catalog.csv", newline="") as fh:
+        table = list(csv.DictReader(fh))
+    assert list(table[0]) == list(C.COLUMNS)
+    kinds = sorted(r["kind"] for r in table)
+    assert kinds == ["fit", "mesh", "spectra", "spectra", "theory", "theory"]
+    spec = [r for r in table if r["kind"] == "spectra"]
+    assert {float(r["S"]) for r in spec} == {553.0, 1106.5}  # nominal values from the ids, not the 1e-9 noise
+    r = next(r for r in spec if r["case_id"] == "D0.116_S553_N32_L3")
+    assert float(r["Delta"]) == 0.116 and int(r["N"]) == 32 and int(r["mesh_level"]) == 3
+    assert r["backend"] == "numpy" and r["package_version"] == "9.9.9"
+    assert r["created"].startswith("2026-01-02T03:04:05")
+    assert r["path"] == "runs/D0.116_S553_N32_L3/spectra.nc"  # relative to the catalog
+    assert float(r["chi"]) == pytest.approx(chi_from_S(553.0, 0.116))
+    mesh = next(r for r in table if r["kind"] == "mesh")
+    assert mesh["mesh_family"] == "icosphere" and mesh["S"] == ""
+    esm = json.loads((root / "catalog.json").read_text())
+    for key in ("esmcat_version", "id", "description", "attributes", "assets", "catalog_file"):
+        assert key in esm
+    assert esm["assets"] == {"column_name": "path", "format": "netcdf"}
+    assert esm["catalog_file"] == "catalog.csv"
+    assert {a["column_name"] for a in esm["attributes"]} >= {"kind", "case_id", "Delta", "S", "chi", "N"}
+    # every row points at a file that opens, also through the JSON
+    for row in C.read_catalog(root / "catalog.json"):
+        with xr.open_dataset(row["abspath"]):
+            pass
+
+
+def test_catalog_errors_name_the_file(tmp_path):
+    bad = tmp_path / "x.nc"
+    bad.write_text("not netcdf")
+    with pytest.raises(C.CatalogError, match="x.nc"):
+        C.catalog_row(bad)
+    with pytest.raises(C.CatalogError, match="does not exist"):
+        C.catalog_row(tmp_path / "missing.nc")
+
+
+# --------------------------------------------------------------------------- open_sweep
+def test_open_sweep_stacks_spectra_along_delta_and_S(tmp_path):
+    root = tmp_path / "results"
+    pts = [(0.116, 553.0, 21), (0.116, 1106.5, 31), (0.116, 2224.0, 15), (0.997, 237.0, 25)]
+    C.write_catalog(write_sweep(root, pts), root / "catalog.csv")
+    ds = C.open_sweep(root / "catalog.csv")
+    assert ds.sizes["Delta"] == 2 and ds.sizes["S"] == 4
+    lstar = float(ds.l_star.sel(S=553).sel(Delta=0.116))
+    assert lstar == pytest.approx(3.0 + 553.0 ** (1 / 3) / 2)
+    assert math.isnan(float(ds.l_star.sel(S=553, Delta=0.997)))  # not in the sweep: NaN
+    assert ds.l_star.sel(S=553).dims == ("Delta",)
+    # time series on one common grid, inside every run's range
+    assert "sigma" in ds and ds.sigma.dims == ("Delta", "S", "time")
+    assert ds.time.min() >= -0.4 and ds.time.max() <= 1.0 and ds.sizes["time"] >= 2
+    assert np.isfinite(ds.sigma.sel(Delta=0.116, S=2224.0)).all()
+    # per-l at t_*, no m arrays, metadata per point
+    assert "Delta_l_at_t_star" in ds and "u_real" not in ds and "A_p_map" not in ds
+    assert str(ds.case_id.sel(Delta=0.116, S=1106.5).values) == "D0.116_S1106.5_N32_L3"
+    assert float(ds.chi.sel(Delta=0.116, S=553)) == pytest.approx(chi_from_S(553.0, 0.116))
+    # the JSON and the directory work too; theory stacks the same way
+    assert C.open_sweep(root / "catalog.json").sizes["S"] == 4
+    th = C.open_sweep(root, kind="theory")
+    assert th.sizes["S"] == 4 and "Delta_tilde_l_at_t_star" not in th
+    # explicit common time grid
+    grid = np.linspace(0.0, 0.5, 6)
+    assert C.open_sweep(root / "catalog.csv", time=grid).sizes["time"] == 6
+
+
+def test_open_sweep_filters_and_duplicates(tmp_path):
+    root = tmp_path / "results"
+    paths = write_sweep(root, [(0.116, 553.0, 21)], N=32, theory=False)
+    paths += [p for p in write_sweep(root, [(0.116, 553.0, 11)], N=64, theory=False) if p.name == "spectra.nc"]
+    C.write_catalog(sorted(set(paths)), root / "catalog.csv")
+    with pytest.raises(C.CatalogError, match="N=..."):
+        C.open_sweep(root / "catalog.csv")
+    ds = C.open_sweep(root / "catalog.csv", N=64)
+    assert str(ds.case_id.item()) == "D0.116_S553_N64_L3"
+    with pytest.raises(C.CatalogError, match="no spectra"):
+        C.open_sweep(root / "catalog.csv", N=128)
+    with pytest.raises(C.CatalogError, match="unknown catalog column"):
+        C.open_sweep(root / "catalog.csv", colour="red")
+
+
+def test_catalog_command(tmp_path, capsys):
+    from vesicle_core.cli_post import add_catalog
+
+    root = tmp_path / "results"
+    paths = write_sweep(root, [(0.116, 553.0, 21), (0.116, 2224.0, 21)])
+    parser = argparse.ArgumentParser(prog="vesicle")
+    add_catalog(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["catalog", *map(str, paths), "-o", str(root / "catalog.csv")])
+    assert args.func(args) == 0
+    assert "6 datasets" in capsys.readouterr().out
+    assert (root / "catalog.json").is_file()
+    assert C.open_sweep(root / "catalog.csv").sizes["S"] == 2

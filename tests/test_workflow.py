@@ -1,0 +1,252 @@
+"""The Snakemake workflow: configs validate (and bad ones fail before any job, naming the key), the sweep table
+plans one point per S and reruns only what a change touches, the paper config plans, and (slow) the tiny config
+runs end to end. Every test works in a temporary copy of Snakefile, workflow/ and config/."""
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+
+
+def _snakemake_cmd():
+    exe = BIN / "snakemake"
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "snakemake"]
+
+
+def _env():
+    env = dict(os.environ)
+    env["PATH"] = f"{BIN}{os.pathsep}{env.get('PATH', '')}"
+    env.setdefault("MPLBACKEND", "Agg")
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    return env
+
+
+def workflow_copy(tmp_path):
+    dst = tmp_path / "wf"
+    dst.mkdir()
+    shutil.copy(ROOT / "Snakefile", dst / "Snakefile")
+    shutil.copytree(ROOT / "workflow", dst / "workflow")
+    shutil.copytree(ROOT / "config", dst / "config")
+    return dst
+
+
+def snakemake(wd, *args, timeout=300):
+    """Run snakemake in ``wd`` (targets first: --configfile takes several values)."""
+    return subprocess.run([*_snakemake_cmd(), *args], cwd=wd, env=_env(), capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def write_config(wd, cfg, name="test.yaml"):
+    path = wd / "config" / name
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return f"config/{name}"
+
+
+def planned_jobs(text):
+    """[{rule, wildcards, output}] from the job listing of a dry run ("rule X:" then 4-space indented lines)."""
+    jobs = []
+    cur = None
+    for line in text.splitlines():
+        m = re.match(r"^(?:local)?rule (\w+):\s*$", line)
+        if m:
+            cur = {"rule": m.group(1), "wildcards": {}, "output": []}
+            jobs.append(cur)
+        elif cur is not None and line.startswith("    "):
+            key, _, val = line.strip().partition(": ")
+            if key == "output":
+                cur["output"] = [v.strip() for v in val.split(",") if v.strip()]
+            elif key == "wildcards":
+                cur["wildcards"] = dict(kv.split("=", 1) for kv in val.split(", ") if "=" in kv)
+        else:
+            cur = None
+    return jobs
+
+
+TINY = {
+    "sweep": [{"delta": 0.116, "S": [553, 1106.5, 2224]}],
+    "mesh": {"level": 2},
+    "run": {"N": 16, "stretch": 0.5, "t_end": 0.3, "output_every": 0.05},
+    "theory": {"n_out": 101, "store_modes": False},
+}
+
+PER_CASE_RULES = {"simulate", "analyze", "figure_dynamics", "figure_wrinkles", "figure_views", "figure_snapshots"}
+AGGREGATE_RULES = {"fit", "figure_lstar", "catalog", "default", "all"}
+
+
+# --------------------------------------------------------------------------- sweep planning
+def test_changing_one_S_plans_jobs_for_that_point_only(tmp_path):
+    wd = workflow_copy(tmp_path)
+    cfg_a = write_config(wd, TINY, "a.yaml")
+    r = snakemake(wd, "-n", "--configfile", cfg_a)
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    cases = {j["wildcards"]["case_id"] for j in jobs if j["rule"] == "simulate"}
+    assert cases == {"D0.116_S553_N16_L2", "D0.116_S1106.5_N16_L2", "D0.116_S2224_N16_L2"}
+    assert sum(j["rule"] == "mesh" for j in jobs) == 1  # one mesh shared by the three flow strengths
+    # pretend everything was built: every planned output exists, all with one timestamp
+    outputs = [wd / o for j in jobs for o in j["output"]]
+    assert outputs and all("{" not in str(o) for o in outputs)
+    for o in outputs:
+        o.parent.mkdir(parents=True, exist_ok=True)
+        o.write_bytes(b"")
+    for o in outputs:
+        os.utime(o, (1.7e9, 1.7e9))
+    r = snakemake(wd, "-n", "--configfile", cfg_a)
+    assert r.returncode == 0 and "Nothing to be done" in r.stdout + r.stderr, r.stdout
+
+    changed = {**TINY, "sweep": [{"delta": 0.116, "S": [553, 1200, 2224]}]}
+    r = snakemake(wd, "-n", "--configfile", write_config(wd, changed, "b.yaml"))
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    rules = {j["rule"] for j in jobs}
+    assert "mesh" not in rules  # the mesh depends on mesh parameters only
+    per_point = [j for j in jobs if j["rule"] not in AGGREGATE_RULES]
+    assert {j["rule"] for j in per_point} == PER_CASE_RULES | {"theory"}
+    for j in per_point:
+        ident = j["wildcards"].get("case_id") or j["wildcards"].get("theory_id")
+        assert ident in ("D0.116_S1200_N16_L2", "D0.116_S1200"), (j["rule"], ident)
+    assert rules - PER_CASE_RULES - {"theory"} <= AGGREGATE_RULES  # fit, Fig. 4 and the catalog gather all points
+
+
+def test_one_sweep_point_by_its_file(tmp_path):
+    wd = workflow_copy(tmp_path)
+    cfg = write_config(wd, TINY)
+    r = snakemake(wd, "results/runs/D0.116_S553_N16_L2/spectra.nc", "-n", "-p", "--configfile", cfg)
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    assert sorted(j["rule"] for j in jobs) == ["analyze", "mesh", "simulate"]
+    # parameters reach the shell as plain numbers: chi from S and Delta, every run key explicit
+    assert "--set chi=66.690084708" in r.stdout and "--set N=16 " in r.stdout and "--set Lambda=null" in r.stdout
+    assert "--delta 0.116" in r.stdout and "--level 2" in r.stdout
+
+
+# --------------------------------------------------------------------------- validation
+@pytest.mark.parametrize("patch, key", [
+    ({"run": {"N": "sixteen"}}, "N"),                                  # wrong type
+    ({"run": {"N": 16, "flux_capacitor": 3}}, "flux_capacitor"),       # unknown key
+    ({"mesh": {"level": 12}}, "level"),                                # out of range
+    ({"sweep": [{"delta": 0.116, "S": [553, -5]}]}, "S"),              # out of range inside the sweep
+    ({"sweep": [{"delta": 0.116, "S": [553], "colour": "red"}]}, "colour"),
+    ({"figures": {"vector_format": "gif"}}, "vector_format"),
+])
+def test_bad_config_fails_before_any_job_naming_the_key(tmp_path, patch, key):
+    wd = workflow_copy(tmp_path)
+    cfg = {**TINY, **{k: ({**TINY.get(k, {}), **v} if isinstance(v, dict) else v) for k, v in patch.items()}}
+    r = snakemake(wd, "--cores", "1", "--configfile", write_config(wd, cfg))
+    out = r.stdout + r.stderr
+    assert r.returncode != 0
+    assert "Error validating config" in out or "ValidationError" in out, out[-2000:]
+    assert f"'{key}'" in out or f"['{key}']" in out, out[-2000:]
+    assert not (wd / "results").exists()  # nothing ran
+    assert not re.search(r"^(local)?rule \w+:", r.stdout, re.M)
+
+
+def test_duplicate_cases_are_refused(tmp_path):
+    wd = workflow_copy(tmp_path)
+    cfg = {**TINY, "sweep": [{"delta": 0.116, "S": [553]}, {"delta": 0.116, "S": [553]}]}
+    r = snakemake(wd, "-n", "--configfile", write_config(wd, cfg))
+    assert r.returncode != 0 and "tag" in r.stdout + r.stderr
+
+
+def test_config_files_satisfy_schema_and_solver():
+    """Every shipped config validates against the schema, and its run section (schema defaults filled in) is a
+    valid vesicle_core.simulate.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
+    from dataclasses import fields
+
+    from snakemake.utils import validate
+
+    from vesicle_core.simulate import RunConfig
+    from vesicle_core.units import chi_from_S
+
+    schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
+    run_props = yaml.safe_load(schema.read_text())["properties"]["run"]["properties"]
+    assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
+    for name in ("config.yaml", "tiny.yaml", "paper.yaml"):
+        cfg = yaml.safe_load((ROOT / "config" / name).read_text())
+        validate(cfg, str(schema))
+        for group in cfg["sweep"]:
+            run = {**cfg["run"], **group.get("run", {})}
+            for S in group.get("S", []):
+                RunConfig.from_dict({**run, "chi": chi_from_S(S, group["delta"])})
+    readme = (ROOT / "config" / "README.md").read_text()
+
+    def keys(node):
+        if isinstance(node, dict):
+            for k, v in node.get("properties", {}).items():
+                yield k
+                yield from keys(v)
+            for k, v in node.items():
+                if k != "properties":
+                    yield from keys(v)
+        elif isinstance(node, list):
+            for v in node:
+                yield from keys(v)
+
+    for key in set(keys(yaml.safe_load(schema.read_text()))):
+        assert f"`{key}`" in readme, f"config/README.md does not document the key {key!r}"
+
+
+# --------------------------------------------------------------------------- paper scale
+def test_paper_config_plans(tmp_path):
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "-n", "-p", "--configfile", "config/paper.yaml")
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    sims = sorted(j["wildcards"]["case_id"] for j in jobs if j["rule"] == "simulate")
+    assert len(sims) == 7
+    for S in ("227", "553", "1106.5", "2224", "4448"):
+        assert f"D0.116_S{S}_N512_Q26070" in sims
+    assert "D0.997_S237_N512_Q26070" in sims and "D0.997_S947_N512_Q26070" in sims
+    assert "--set backend=cupy" in r.stdout and "--set N=512" in r.stdout
+    sim_blocks = r.stdout.split("rule simulate:")[1:]
+    assert all("gpu=1" in b.split("\n\n")[0] for b in sim_blocks)
+
+
+def test_lint_is_clean(tmp_path):
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "--lint")
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "Congratulations" in r.stdout + r.stderr, r.stdout + r.stderr
+
+
+# --------------------------------------------------------------------------- end to end
+def test_tiny_workflow_end_to_end(tmp_path):
+    import xarray as xr
+
+    from vesicle_core.catalog import open_sweep, read_catalog
+
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "--cores", "2", "--configfile", "config/tiny.yaml", timeout=900)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    res = wd / "results"
+    rows = read_catalog(res / "catalog.csv")
+    kinds = sorted({row["kind"] for row in rows})
+    assert kinds == ["fit", "mesh", "spectra", "theory", "trajectory"]
+    for row in rows:  # every catalog row points at a file that opens
+        with xr.open_dataset(row["abspath"]) as ds:
+            assert ds.sizes or ds.data_vars
+    for nc in res.rglob("*.nc"):  # every netCDF output opens
+        with xr.open_dataset(nc):
+            pass
+    pngs = list((res / "figures").rglob("*.png"))
+    assert len(pngs) == 1 + 4 * 2
+    for png in pngs:
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 2000
+    for svg in (res / "figures").rglob("*.svg"):
+        assert "<svg" in svg.read_text()
+    for bench in (res / "benchmarks" / "simulate").glob("*.tsv"):
+        assert bench.read_text().startswith("s\t")
+    sweep = open_sweep(res / "catalog.csv")
+    assert sweep.l_star.sel(S=553).size == 1
+    r = snakemake(wd, "--report", "report.html", "--configfile", "config/tiny.yaml")
+    assert r.returncode == 0 and (wd / "report.html").stat().st_size > 10_000, r.stderr[-2000:]
+    r = snakemake(wd, "-n", "--configfile", "config/tiny.yaml")
+    assert "Nothing to be done" in r.stdout + r.stderr

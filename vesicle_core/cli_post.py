@@ -1,0 +1,200 @@
+"""``vesicle figures`` and ``vesicle catalog``: the post-processing subcommands of the workflow.
+
+Registered in :mod:`vesicle_core.cli` with ``add_figures(sub)`` and ``add_catalog(sub)``; each subcommand sets
+``func`` to a function of the parsed arguments that returns 0.
+
+    vesicle figures dynamics SPECTRA.nc [--theory THEORY.nc] -o FIG.png [FIG.svg ...]   Fig. 3/5 style
+    vesicle figures lstar FIT.nc [--measure l_star|l_peak] -o FIG.png [FIG.svg]        Fig. 4
+    vesicle figures wrinkles SPECTRA.nc [--times T ...] -o FIG.png [FIG.pdf]          Fig. 8 style
+    vesicle figures views TRAJECTORY.nc [--spectra SPECTRA.nc | --time T] -o FIG.png   Figs. 6e/7c
+    vesicle figures snapshots TRAJECTORY.nc [--times T ... | --n 6] -o FIG.png         strip over gamma_dot t
+    vesicle catalog FILE.nc ... -o results/catalog.csv [--json results/catalog.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _int_in(name, lo, hi):
+    def conv(s):
+        try:
+            v = int(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {s!r}") from None
+        if not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {v}")
+        return v
+
+    return conv
+
+
+def _float(name):
+    def conv(s):
+        try:
+            v = float(s)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {s!r}") from None
+        if v != v or v in (float("inf"), float("-inf")):
+            raise argparse.ArgumentTypeError(f"{name} must be a finite number, got {s!r}")
+        return v
+
+    return conv
+
+
+def _outputs_arg(p, formats="png, svg or pdf"):
+    p.add_argument("-o", "--output", nargs="+", required=True, metavar="FILE",
+                   help=f"output file(s); the format follows each suffix ({formats})")
+
+
+def _dpi_arg(p):
+    p.add_argument("--dpi", type=_int_in("--dpi", 50, 1200), default=150, help="resolution of the PNG (default 150)")
+
+
+def _size_arg(p, default, flag="--size", what="the rendered grid of views"):
+    p.add_argument(flag, type=_int_in(flag, 64, 8000), nargs=2, metavar=("WIDTH", "HEIGHT"),
+                   default=list(default), help=f"pixel size of {what} (default {default[0]} {default[1]})")
+
+
+def _engine_arg(p):
+    p.add_argument("--engine", choices=("auto", "pyvista", "matplotlib"), default=None,
+                   help="3D engine (default: $VESICLE_RENDER or auto: pyvista off-screen if it works, else matplotlib)")
+
+
+def _done(paths):
+    for p in paths if isinstance(paths, (list, tuple)) else [paths]:
+        print(f"wrote {p}")
+    return 0
+
+
+# --------------------------------------------------------------------------- figures
+def _cmd_dynamics(a):
+    from .plots import plot_dynamics
+
+    return _done(plot_dynamics(a.spectra, a.theory, a.output, dpi=a.dpi, t_min=a.t_min, t_max=a.t_max))
+
+
+def _cmd_lstar(a):
+    from .plots import plot_lstar
+
+    return _done(plot_lstar(a.fit, a.output, measure=a.measure, dpi=a.dpi, guide=not a.no_guide))
+
+
+def _cmd_wrinkles(a):
+    from .plots import plot_wrinkles
+
+    return _done(plot_wrinkles(a.spectra, a.output, times=a.times, dpi=a.dpi))
+
+
+def _png_only(outputs):
+    from .errors import ConfigError
+
+    for o in outputs:
+        if not o.lower().endswith(".png"):
+            raise ConfigError(f"3D renders are written as PNG; got output {o}")
+
+
+def _cmd_views(a):
+    from .render import views_from_trajectory
+
+    _png_only(a.output)
+    out = [views_from_trajectory(a.trajectory, o, time=a.time, spectra=a.spectra, size=tuple(a.size),
+                                 engine=a.engine) for o in a.output]
+    return _done(out)
+
+
+def _cmd_snapshots(a):
+    from .render import snapshots_from_trajectory
+
+    _png_only(a.output)
+    out = [snapshots_from_trajectory(a.trajectory, o, times=a.times, n=a.n, spectra=a.spectra, view=a.view,
+                                     frame_size=tuple(a.frame_size), engine=a.engine) for o in a.output]
+    return _done(out)
+
+
+def add_figures(subparsers):
+    """Register ``vesicle figures <kind>`` on the top-level subparsers."""
+    p = subparsers.add_parser("figures", help="figures of the paper (Figs. 3/5, 4, 6e/7c, 8) from the datasets",
+                              description="Figures from the datasets: matplotlib (Agg) line plots and heat maps, "
+                                          "pyvista off-screen 3D renders (matplotlib fallback).")
+    sub = p.add_subparsers(dest="figure", required=True, metavar="{dynamics,lstar,wrinkles,views,snapshots}")
+
+    d = sub.add_parser("dynamics", help="Fig. 3/5: sigma(t), Delta_2(t), Delta_l*(t), IBM against PA, stages marked")
+    d.add_argument("spectra", help="spectra.nc of a run ('vesicle decompose')")
+    d.add_argument("--theory", help="theory.nc of the same (Delta, S) ('vesicle theory')")
+    d.add_argument("--t-min", type=_float("--t-min"), default=0.0,
+                   help="first time shown, gamma_dot (t - t0) (default 0: the reversal)")
+    d.add_argument("--t-max", type=_float("--t-max"), default=None, help="last time shown (default: all)")
+    _outputs_arg(d)
+    _dpi_arg(d)
+    d.set_defaults(func=_cmd_dynamics)
+
+    s = sub.add_parser("lstar", help="Fig. 4: l_* against S (log-log) with fitted exponents and an S^(1/3) guide")
+    s.add_argument("fit", help="fit.nc written by 'vesicle fit'")
+    s.add_argument("--measure", choices=("l_star", "l_peak"), default="l_star",
+                   help="l_* of eq. (31) (default) or the dominant mode at t_*")
+    s.add_argument("--no-guide", action="store_true", help="omit the S^(1/3) guide")
+    _outputs_arg(s)
+    _dpi_arg(s)
+    s.set_defaults(func=_cmd_lstar)
+
+    w = sub.add_parser("wrinkles", help="Fig. 8: A_p(theta, phi) maps, A_p-bar(t), Delta~_l(t) heat map")
+    w.add_argument("spectra", help="spectra.nc of a run (maps need 'vesicle decompose --map')")
+    w.add_argument("--times", type=_float("--times"), nargs="+", default=None,
+                   help="gamma_dot (t - t0) of the maps (default: t_*/2, t_* and 3 t_*/2)")
+    _outputs_arg(w)
+    _dpi_arg(w)
+    w.set_defaults(func=_cmd_wrinkles)
+
+    v = sub.add_parser("views", help="Figs. 6e/7c: six views of the membrane coloured by local tension")
+    v.add_argument("trajectory", help="trajectory.nc written by 'vesicle run'")
+    v.add_argument("--spectra", help="spectra.nc of the run: its t_* is the default time")
+    v.add_argument("--time", type=_float("--time"), default=None,
+                   help="gamma_dot (t - t0) of the frame (nearest; default t_*, else the last frame)")
+    _size_arg(v, (1500, 1000))
+    _engine_arg(v)
+    _outputs_arg(v, "png")
+    v.set_defaults(func=_cmd_views)
+
+    n = sub.add_parser("snapshots", help="strip of membrane snapshots over gamma_dot t, coloured by local tension")
+    n.add_argument("trajectory", help="trajectory.nc written by 'vesicle run'")
+    n.add_argument("--spectra", help="spectra.nc of the run: the default times gather around its t_*")
+    n.add_argument("--times", type=_float("--times"), nargs="+", default=None,
+                   help="gamma_dot (t - t0) of the frames (nearest; default: n-1 evenly spaced from t0 to 2 t_*, "
+                        "then the last frame)")
+    n.add_argument("--n", type=_int_in("--n", 1, 24), default=6, help="number of frames without --times (default 6)")
+    n.add_argument("--view", choices=("front", "back", "left", "right", "top", "bottom"), default="front",
+                   help="viewing direction (default front: along z)")
+    _size_arg(n, (400, 400), "--frame-size", "each frame")
+    _engine_arg(n)
+    _outputs_arg(n, "png")
+    n.set_defaults(func=_cmd_snapshots)
+    return p
+
+
+# --------------------------------------------------------------------------- catalog
+def _cmd_catalog(a):
+    from .catalog import write_catalog
+
+    rows = write_catalog(a.inputs, a.output, a.json, description=a.description)
+    kinds = {}
+    for r in rows:
+        kinds[r["kind"]] = kinds.get(r["kind"], 0) + 1
+    summary = ", ".join(f"{n} {k}" for k, n in kinds.items())
+    json_path = a.json or str(a.output).rsplit(".", 1)[0] + ".json"
+    print(f"wrote {a.output} ({len(rows)} datasets: {summary}) and {json_path}")
+    return 0
+
+
+def add_catalog(subparsers):
+    """Register ``vesicle catalog`` on the top-level subparsers."""
+    p = subparsers.add_parser("catalog", help="index datasets: catalog.csv (one row per file) + ESM-collection JSON",
+                              description="Write a CSV catalog (kind, case id, Delta, S, chi, N, mesh level, backend, "
+                                          "path, created, package version) and an esmcat JSON beside it. Paths are "
+                                          "stored relative to the CSV's directory.")
+    p.add_argument("inputs", nargs="+", help="netCDF datasets (meshes, trajectories, spectra, theory, fits)")
+    p.add_argument("-o", "--output", required=True, help="catalog CSV to write")
+    p.add_argument("--json", default=None, help="ESM-collection JSON to write (default: the CSV name with .json)")
+    p.add_argument("--description", default=None, help="description stored in the JSON")
+    p.set_defaults(func=_cmd_catalog)
+    return p

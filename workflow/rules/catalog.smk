@@ -1,0 +1,19 @@
+# The data catalog: one CSV row per dataset and an ESM-collection JSON beside it (vesicle_core.catalog).
+
+
+rule catalog:
+    input:
+        meshes=all_meshes(),
+        trajectories=all_trajectories(),
+        spectra=all_spectra(),
+        theory=all_theories(),
+        fit="results/fits/lstar_vs_S.nc",
+    output:
+        csv="results/catalog.csv",
+        json="results/catalog.json",
+    log:
+        "results/logs/catalog/catalog.log",
+    conda:
+        "../envs/vesicle.yaml"
+    shell:
+        "vesicle catalog {input} -o {output.csv} --json {output.json} > {log} 2>&1"

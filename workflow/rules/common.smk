@@ -1,0 +1,194 @@
+# Helpers and the sweep table. No rules in this file (Snakemake's linter asks for functions and rules apart).
+#
+# The sweep table CASES has one row per simulation case: (Delta, S or chi, N, mesh) from config["sweep"] merged
+# with the global mesh/run sections. Ids come from vesicle_core.catalog (readable, built from the physical
+# parameters only, e.g. D0.116_S553_N32_L3), so the same parameters always map to the same files and a change
+# of one S plans jobs for that point only. Meshes are keyed by mesh parameters alone and shared between flow
+# strengths; PA datasets are keyed by (Delta, S) alone.
+
+import os
+import re
+
+from vesicle_core.catalog import case_id as _case_id
+from vesicle_core.catalog import mesh_id as _mesh_id
+from vesicle_core.catalog import theory_id as _theory_id
+from vesicle_core.units import S_from_chi, chi_from_S
+
+# the order in which run parameters are passed to `vesicle run --set`
+RUN_KEYS = (
+    "N", "L", "Re", "Lambda", "K_volume", "K_area", "area_model", "scheme", "projection_refresh", "stretch",
+    "stationary_tol", "t_end", "dt", "dt_safety", "output_every", "checkpoint_every", "max_drift", "backend",
+    "dtype", "fft_workers",
+)
+
+
+def _plain(value):
+    """A config value as a plain Python scalar (YAML may give numpy-free ints/floats already)."""
+    if isinstance(value, bool) or value is None or isinstance(value, str):
+        return value
+    if isinstance(value, int):
+        return int(value)
+    return float(value)
+
+
+def _mesh_params(group, base):
+    mesh = {**base, **group.get("mesh", {})}
+    if mesh["family"] == "quasiuniform" and not mesh.get("n_vertices"):
+        mesh["n_vertices"] = 10 * 4 ** int(mesh["level"]) + 2
+    if mesh["family"] == "icosphere":
+        # icosphere: the vertex count follows from the level; seeds and Lloyd steps do not apply
+        mesh.update(n_vertices=10 * 4 ** int(mesh["level"]) + 2, seed=0, lloyd_steps=0)
+    return mesh
+
+
+def build_sweep(cfg):
+    """(cases, meshes, theories): dicts id -> parameters, from a validated config."""
+    cases, meshes, theories = {}, {}, {}
+    th = cfg["theory"]
+    for gi, group in enumerate(cfg["sweep"]):
+        delta = float(group["delta"])
+        mesh = _mesh_params(group, cfg["mesh"])
+        run = {**cfg["run"], **group.get("run", {})}
+        if "N" in group:
+            run["N"] = group["N"]
+        run = {k: _plain(run[k]) for k in RUN_KEYS}
+        mid = _mesh_id(delta, mesh["family"], mesh["level"], mesh["n_vertices"], mesh["seed"], mesh["radius"])
+        meshes[mid] = {
+            "delta": delta, "family": mesh["family"], "level": int(mesh["level"]),
+            "n_vertices": int(mesh["n_vertices"]), "seed": int(mesh["seed"]),
+            "lloyd_steps": int(mesh["lloyd_steps"]), "radius": float(mesh["radius"]),
+        }
+        if "S" in group:
+            flows = [("S", float(s)) for s in group["S"]]
+        else:
+            flows = [("chi", float(c)) for c in group["chi"]]
+        for kind, value in flows:
+            S = value if kind == "S" else S_from_chi(value, delta)
+            chi = chi_from_S(value, delta) if kind == "S" else value
+            cid = _case_id(delta, **{kind: value}, N=run["N"], family=mesh["family"], level=mesh["level"],
+                           n_vertices=mesh["n_vertices"] if mesh["family"] == "quasiuniform" else None,
+                           seed=mesh["seed"] if mesh["family"] == "quasiuniform" else 0, tag=group.get("tag"))
+            if cid in cases:
+                raise ValueError(
+                    f"config: sweep[{gi}] repeats case {cid} (same Delta, flow, N and mesh as another entry); "
+                    "give one of the groups a 'tag'"
+                )
+            tid = _theory_id(delta, S, th["seed"])
+            cases[cid] = {"delta": delta, "S": float(S), "chi": float(chi), "mesh_id": mid, "theory_id": tid,
+                          "run": run, "group": gi}
+            theories.setdefault(tid, {"delta": delta, "S": float(S)})
+        for s in group.get("pa_S", []):
+            theories.setdefault(_theory_id(delta, float(s), th["seed"]), {"delta": delta, "S": float(s)})
+    return cases, meshes, theories
+
+
+CASES, MESHES, THEORIES = build_sweep(config)
+
+
+def _alternation(ids):
+    return "|".join(re.escape(i) for i in sorted(ids, key=len, reverse=True))
+
+
+wildcard_constraints:
+    case_id=_alternation(CASES),
+    mesh_id=_alternation(MESHES),
+    theory_id=_alternation(THEORIES),
+
+
+# --------------------------------------------------------------------------- parameter accessors for params:
+def case_value(key):
+    """params: accessor of one sweep-table field of the case (plain float/str)."""
+    return lambda wildcards: CASES[wildcards.case_id][key]
+
+
+def run_value(key):
+    """params: accessor of one run parameter of the case; None becomes YAML's null for `--set KEY=null`."""
+
+    def get(wildcards):
+        v = CASES[wildcards.case_id]["run"][key]
+        return "null" if v is None else v
+
+    return get
+
+
+def mesh_value(key):
+    return lambda wildcards: MESHES[wildcards.mesh_id][key]
+
+
+def theory_value(key):
+    return lambda wildcards: THEORIES[wildcards.theory_id][key]
+
+
+def option(flag, value):
+    """An optional command-line flag: '' when value is None/False, '--flag' for True, else '--flag v1 v2'."""
+    if value is None or value is False:
+        return ""
+    if value is True:
+        return flag
+    if isinstance(value, (list, tuple)):
+        return f"{flag} " + " ".join(str(v) for v in value)
+    return f"{flag} {value}"
+
+
+def sim_resource(key):
+    return lambda wildcards: int(config["resources"]["simulate"][key])
+
+
+def ana_resource(key):
+    return lambda wildcards: int(config["resources"]["analysis"][key])
+
+
+# --------------------------------------------------------------------------- paths
+VEC = config["figures"]["vector_format"]
+
+
+def mesh_of_case(wildcards):
+    return f"results/meshes/{CASES[wildcards.case_id]['mesh_id']}.nc"
+
+
+def theory_of_case(wildcards):
+    return f"results/theory/{CASES[wildcards.case_id]['theory_id']}.nc"
+
+
+def all_meshes():
+    return [f"results/meshes/{m}.nc" for m in MESHES]
+
+
+def all_trajectories():
+    return [f"results/runs/{c}/trajectory.nc" for c in CASES]
+
+
+def all_spectra():
+    return [f"results/runs/{c}/spectra.nc" for c in CASES]
+
+
+def all_theories():
+    return [f"results/theory/{t}.nc" for t in THEORIES]
+
+
+def case_figures(case):
+    return [
+        f"results/figures/{case}/dynamics.png",
+        f"results/figures/{case}/dynamics.{VEC}",
+        f"results/figures/{case}/wrinkles.png",
+        f"results/figures/{case}/views.png",
+        f"results/figures/{case}/snapshots.png",
+    ]
+
+
+def all_figures():
+    out = ["results/figures/lstar_vs_S.png", f"results/figures/lstar_vs_S.{VEC}"]
+    for c in CASES:
+        out += case_figures(c)
+    return out
+
+
+def all_targets():
+    return ["results/catalog.csv", "results/catalog.json", *all_figures()]
+
+
+def _caching_requested(rule_name):
+    """True when Snakemake runs with --cache for this rule (--cache alone means every eligible rule)."""
+    settings = getattr(workflow, "workflow_settings", None)
+    rules = getattr(settings, "cache", None)
+    return rules is not None and (len(rules) == 0 or rule_name in rules)
