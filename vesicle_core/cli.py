@@ -51,7 +51,8 @@ def _add_mesh(sub):
 
     p = sub.add_parser("mesh", help="build an ellipsoidal vesicle mesh and write it as netCDF (UGRID)")
     p.add_argument("-o", "--output", required=True, help="output netCDF file")
-    p.add_argument("--family", choices=FAMILIES, default="icosphere", help="mesh family (default: icosphere)")
+    p.add_argument("--family", choices=FAMILIES, default="quasiuniform",
+                   help="mesh family (default: quasiuniform, which has no icosahedral bias; see config/README.md)")
     p.add_argument("--level", type=_int_in("--level", 0, MAX_ICOSPHERE_LEVEL), default=4,
                    help=f"icosphere subdivision level in [0, {MAX_ICOSPHERE_LEVEL}] (10*4^level+2 vertices; default 4)")
     p.add_argument("--n-vertices", type=_int_in("--n-vertices", 12, 20_000_000), default=None,
