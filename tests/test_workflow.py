@@ -169,7 +169,7 @@ def test_config_files_satisfy_schema_and_solver():
     schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
     run_props = yaml.safe_load(schema.read_text())["properties"]["run"]["properties"]
     assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
-    for name in ("config.yaml", "tiny.yaml", "paper.yaml"):
+    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "validation.yaml"):
         cfg = yaml.safe_load((ROOT / "config" / name).read_text())
         validate(cfg, str(schema))
         for group in cfg["sweep"]:
@@ -208,6 +208,17 @@ def test_paper_config_plans(tmp_path):
     assert "--set backend=cupy" in r.stdout and "--set N=512" in r.stdout
     sim_blocks = r.stdout.split("rule simulate:")[1:]
     assert all("gpu=1" in b.split("\n\n")[0] for b in sim_blocks)
+
+
+def test_validation_config_plans(tmp_path):
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "-n", "-p", "--configfile", "config/validation.yaml")
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    sims = sorted(j["wildcards"]["case_id"] for j in jobs if j["rule"] == "simulate")
+    assert len(sims) == 14  # 5 + 2 fine, 5 coarse, 2 box
+    assert any(j["rule"] == "validation_report" for j in jobs)
+    assert "--box" in r.stdout and "--case" in r.stdout
 
 
 def test_lint_is_clean(tmp_path):

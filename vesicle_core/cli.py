@@ -250,6 +250,54 @@ def _cmd_fit(a):
     return 0
 
 
+# --------------------------------------------------------------------------- report (validation)
+def _add_report(sub):
+    p = sub.add_parser("report", help="write the validation study (docs/validation.md) from produced datasets")
+    p.add_argument("-o", "--output", required=True, help="markdown file to write (figures are copied beside it)")
+    p.add_argument("--case", nargs=5, action="append", required=True,
+                   metavar=("CASE_ID", "GROUP", "TRAJECTORY", "SPECTRA", "THEORY"),
+                   help="one case: id, group (fine | coarse | box), trajectory.nc, spectra.nc, theory.nc (repeatable)")
+    p.add_argument("--fit", nargs=2, action="append", metavar=("GROUP", "FIT"), default=[],
+                   help="fit.nc of the fine or coarse group (repeatable)")
+    p.add_argument("--box", nargs=2, metavar=("SMALL", "LARGE"), help="trajectories of the periodic-box test")
+    p.add_argument("--figure", nargs=2, action="append", metavar=("PATH", "CAPTION"), default=[],
+                   help="figure to copy next to the report and embed (repeatable)")
+    p.add_argument("--resolution-note", default="", help="one line on the resolution used")
+    p.add_argument("--wall-time-note", default="", help="one line on how long the study took")
+    p.set_defaults(func=_cmd_report)
+
+
+def _cmd_report(a):
+    import shutil
+    from pathlib import Path
+
+    from .validation import write_report
+
+    out = Path(a.output)
+    figdir = out.parent / "figures" / out.stem
+    figdir.mkdir(parents=True, exist_ok=True)
+    figures = []
+    for path, caption in a.figure:
+        src = Path(path)
+        if not src.exists():
+            raise ConfigError(f"--figure {path} does not exist")
+        name = f"{src.parent.name}_{src.name}" if src.parent.name not in ("figures", "") else src.name
+        shutil.copyfile(src, figdir / name)
+        figures.append({"path": f"figures/{out.stem}/{name}", "caption": caption})
+    manifest = {
+        "title": "Validation against the reference paper",
+        "resolution_note": a.resolution_note,
+        "cases": [{"case_id": c, "group": g, "trajectory": t, "spectra": s, "theory": th} for c, g, t, s, th in a.case],
+        "fits": dict(a.fit),
+        "box": {"small": a.box[0], "large": a.box[1]} if a.box else None,
+        "figures": figures,
+        "discussion": [f"- {a.wall_time_note}"] if a.wall_time_note else [],
+    }
+    write_report(manifest, out)
+    print(f"wrote {out}")
+    return 0
+
+
 # --------------------------------------------------------------------------- bench
 def _add_bench(sub):
     p = sub.add_parser("bench", help="time one IBM step and its parts against the bare FFT (see vesicle_core.bench)")
@@ -274,7 +322,7 @@ def _post_adders():
     return [add_figures, add_catalog]
 
 
-_ADDERS = [_add_mesh, _add_run, _add_decompose, _add_theory, _add_fit, _add_bench]
+_ADDERS = [_add_mesh, _add_run, _add_decompose, _add_theory, _add_fit, _add_report, _add_bench]
 
 
 def build_parser():

@@ -184,7 +184,8 @@ def all_figures():
 
 
 def all_targets():
-    return ["results/catalog.csv", "results/catalog.json", *all_figures()]
+    extra = [config["validation"].get("report", "docs/validation.md")] if "validation" in config else []
+    return ["results/catalog.csv", "results/catalog.json", *all_figures(), *extra]
 
 
 def _caching_requested(rule_name):
@@ -192,3 +193,67 @@ def _caching_requested(rule_name):
     settings = getattr(workflow, "workflow_settings", None)
     rules = getattr(settings, "cache", None)
     return rules is not None and (len(rules) == 0 or rule_name in rules)
+
+
+# --------------------------------------------------------------------------- validation study (rules/validation.smk)
+def _case_tag(cid):
+    return config["sweep"][CASES[cid]["group"]].get("tag")
+
+
+def validation_group(cid):
+    v = config["validation"]
+    tag = _case_tag(cid)
+    if tag == v["coarse_tag"]:
+        return "coarse"
+    if tag in v["box_tags"]:
+        return "box"
+    return "fine"
+
+
+def validation_inputs():
+    out = {"fit": "results/fits/lstar_vs_S.nc", "figures": validation_figures()}
+    for cid in CASES:
+        out[f"traj_{cid}"] = f"results/runs/{cid}/trajectory.nc"
+        out[f"spec_{cid}"] = f"results/runs/{cid}/spectra.nc"
+        out[f"theo_{cid}"] = f"results/theory/{CASES[cid]['theory_id']}.nc"
+    return out
+
+
+def _fine_cases_at(S_values):
+    return [c for c in CASES if validation_group(c) == "fine" and any(abs(CASES[c]["S"] - s) < 1e-6 for s in S_values)]
+
+
+def validation_figures():
+    figs = ["results/figures/lstar_vs_S.png"]
+    for c in _fine_cases_at(config["validation"]["dynamics_S"]):
+        figs.append(f"results/figures/{c}/dynamics.png")
+    for c in _fine_cases_at(config["validation"]["detail_S"]):
+        figs += [f"results/figures/{c}/wrinkles.png", f"results/figures/{c}/views.png"]
+    return figs
+
+
+def _caption(path):
+    if path.endswith("lstar_vs_S.png"):
+        return "Fig. 4 style: l_* against S, simulation and PA, fitted exponents"
+    case = os.path.basename(os.path.dirname(path))
+    kind = os.path.splitext(os.path.basename(path))[0]
+    text = {"dynamics": "Fig. 3/5 style: sigma(t), Delta_2, Delta_l* (simulation vs PA)",
+            "wrinkles": "Fig. 8 style: A_p maps, A_p-bar(t), Delta~_l(t)",
+            "views": "Fig. 6e/7c style: six views coloured by local tension"}[kind]
+    return f"{text}, {case}"
+
+
+def validation_args(wildcards, input):
+    v = config["validation"]
+    parts = []
+    for cid in CASES:
+        parts.append(f"--case {cid} {validation_group(cid)} {input[f'traj_{cid}']} {input[f'spec_{cid}']} "
+                     f"{input[f'theo_{cid}']}")
+    parts.append(f"--fit fine {input.fit}")
+    box = [c for t in v["box_tags"] for c in CASES if _case_tag(c) == t]
+    if len(box) == 2:
+        parts.append(f"--box {input[f'traj_{box[0]}']} {input[f'traj_{box[1]}']}")
+    for f in input.figures:
+        parts.append(f"--figure {f} '{_caption(f)}'")
+    parts.append(f"--resolution-note '{v['resolution_note']}'")
+    return " ".join(parts)
