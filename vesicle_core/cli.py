@@ -10,7 +10,8 @@ import argparse
 import os
 import sys
 
-from .errors import VesicleError, check_range
+from .cli_args import int_in as _int_in
+from .errors import ConfigError, VesicleError, check_range
 
 
 class _Parser(argparse.ArgumentParser):
@@ -27,19 +28,6 @@ def _positive_float(name):
             raise argparse.ArgumentTypeError(f"{name} must be a number > 0, got {s!r}") from None
         if not v > 0:
             raise argparse.ArgumentTypeError(f"{name} must be > 0, got {s!r}")
-        return v
-
-    return conv
-
-
-def _int_in(name, lo, hi):
-    def conv(s):
-        try:
-            v = int(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {s!r}") from None
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {v}")
         return v
 
     return conv

@@ -15,18 +15,7 @@ from __future__ import annotations
 
 import argparse
 
-
-def _int_in(name, lo, hi):
-    def conv(s):
-        try:
-            v = int(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {s!r}") from None
-        if not lo <= v <= hi:
-            raise argparse.ArgumentTypeError(f"{name} must be an integer in [{lo}, {hi}], got {v}")
-        return v
-
-    return conv
+from .cli_args import int_in as _int_in
 
 
 def _float(name):

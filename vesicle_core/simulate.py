@@ -35,7 +35,7 @@ import math
 import os
 import sys
 import time as _time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -496,7 +496,6 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    final = outdir / TRAJECTORY
     ckpt = outdir / CHECKPOINT
     (outdir / FAILURE).unlink(missing_ok=True)
 
