@@ -65,7 +65,7 @@ class RunConfig:
     K_volume: float = 1.0e7  # global volume penalty [kappa/R^3]; holds V without costing dt
     K_area: float = 0.0  # global area penalty [kappa/R^2]
     area_model: str = "voronoi"
-    scheme: str = "explicit"  # "explicit" | "projection" (exact global area by a tension multiplier)
+    scheme: str = "projection"  # "projection" (exact global area by a tension multiplier) | "explicit" (paper)
     projection_refresh: int = 10  # steps between recomputations of M grad(A) (projection scheme)
     stretch: float = 1.0  # max duration of the forward phase [gamma_dot t]
     stationary_tol: float = 0.0  # stop stretching when relative shape change per gamma_dot t < tol (0 = never)
@@ -95,8 +95,6 @@ class RunConfig:
         if self.scheme not in SCHEMES:
             raise ConfigError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
         check_range("projection_refresh", self.projection_refresh, 1, 10000, integer=True)
-        if self.scheme == "projection" and self.Re > 0:
-            raise ConfigError("scheme 'projection' needs Re = 0 (steady Stokes); use scheme 'explicit' for Re > 0")
         check_range("stretch", self.stretch, 0.0, 1e4)
         check_range("stationary_tol", self.stationary_tol, 0.0, 1.0)
         check_range("t_end", self.t_end, 0.0, 1e4)
@@ -428,7 +426,9 @@ def _projected_displacement(solver: IBMSolver, state: State, X, F, geo, dt, rate
     from the previous step, then corrected by d_sigma so that the linearised area change of the step
     cancels the current area error: grad A . dX = A0 - A. The correction's flow uses w = M grad A,
     refreshed every ``projection_refresh`` steps (only the small correction d_sigma uses the cached
-    w, so the error is second order). Costs one extra Stokes solve per refresh.
+    w, so the error is second order). Costs one extra Stokes solve per refresh. w is the steady-Stokes
+    response; at finite Re the main solve still uses the exponential update (23), and the correction's
+    flow is then off by the fluid's inertial relaxation, O(Re) (Re ~ 2e-4 in the paper).
     """
     xp = solver.xp
     cfg = solver.cfg
@@ -485,6 +485,16 @@ class _Progress:
     def close(self):
         if self.bar is not None:
             self.bar.close()
+
+
+def _reverse(state: State, bar, relax_steps, cfg: RunConfig, stationary: bool):
+    """Flip the background flow (Fig. 1): the reversal time t0 is the current time."""
+    state.phase, state.t_reverse = "relax", state.t
+    bar.total = state.step + relax_steps
+    if bar.bar is not None:
+        bar.bar.total = bar.total
+    log.info("flow reversed at gamma_dot t = %.4f (%s)", state.t * cfg.chi,
+             "shape stationary" if stationary else "end of the stretching phase")
 
 
 def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: int | None = None) -> Path:
@@ -593,26 +603,27 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
     try:
         while True:
             X = state.X
+            # phase changes depend on the step count only, so a resumed run takes them at the same steps
+            if state.phase == "stretch" and state.step >= stretch_steps:
+                _reverse(state, bar, relax_steps, cfg, stationary=False)
+                state.next_output = state.step  # a frame at t0 exactly; later frames every output_every
+            done = state.phase == "relax" and state.t - state.t_reverse >= cfg.t_end * T - 0.5 * dt
+            if done:
+                state.next_output = state.step  # the last frame is always written
             F, geo = solver.forces(X)
             if state.step == state.next_output:
                 sc = frame(X, F, geo)
                 state.next_output = state.step + out_steps
                 t_show = cfg.chi * (state.t - state.t_reverse) if state.phase == "relax" else cfg.chi * state.t
                 bar.update(state.step, f"{state.phase} gt={t_show:.3f} sigma={sc['tension']:.4g} dA={sc['area_drift']:.1e}")
-                # phase logic at output times only, so it is reproducible on resume
-                if state.phase == "stretch":
+                if state.phase == "stretch" and cfg.stationary_tol > 0 and state.step > 0:
                     mom = _shape_moments(X, xp)
-                    rate = max(abs(a - b) / b for a, b in zip(mom, state.shape_prev)) / (cfg.output_every)
+                    rate = max(abs(a - b) / b for a, b in zip(mom, state.shape_prev)) / cfg.output_every
                     state.shape_prev = mom
-                    stationary = cfg.stationary_tol > 0 and state.step > 0 and rate < cfg.stationary_tol
-                    if state.step >= stretch_steps or stationary:
-                        state.phase, state.t_reverse = "relax", state.t
-                        bar.total = state.step + relax_steps
-                        if bar.bar is not None:
-                            bar.bar.total = bar.total
-                        log.info("flow reversed at gamma_dot t = %.4f (stationary=%s)", state.t * cfg.chi, stationary)
-                if state.phase == "relax" and state.t - state.t_reverse >= cfg.t_end * T - 0.5 * dt:
-                    break
+                    if rate < cfg.stationary_tol:
+                        _reverse(state, bar, relax_steps, cfg, stationary=True)  # this frame is at t0
+            if done:
+                break
             rate = cfg.chi * (1.0 if state.phase == "stretch" else -1.0)
             if cfg.scheme == "projection":
                 dX = _projected_displacement(solver, state, X, F, geo, dt, rate, A0)
