@@ -178,3 +178,11 @@ def test_plan_reuse_never_writes_into_earlier_arrays(lib):
     B = be.rfftn(raw, (1, 2, 3))
     np.testing.assert_array_equal(a, a_keep)
     np.testing.assert_allclose(B, np.fft.rfftn(raw, axes=(1, 2, 3)), atol=1e-12)
+
+
+def test_float32_stays_single_precision_with_scipy_fft():
+    be = get_backend(dtype="float32", fft_library="scipy")
+    a = np.random.default_rng(1).standard_normal((3, 8, 8, 8))  # float64 input
+    A = be.rfftn(a, (1, 2, 3))
+    assert A.dtype == np.complex64
+    assert np.allclose(be.irfftn(A, (8, 8, 8), (1, 2, 3)), a, atol=1e-5)

@@ -72,7 +72,7 @@ def planned_jobs(text):
 
 TINY = {
     "sweep": [{"delta": 0.116, "S": [553, 1106.5, 2224]}],
-    "mesh": {"level": 2},
+    "mesh": {"family": "icosphere", "level": 2},
     "run": {"N": 16, "stretch": 0.5, "t_end": 0.3, "output_every": 0.05},
     "theory": {"n_out": 101, "store_modes": False},
 }

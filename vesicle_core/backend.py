@@ -141,6 +141,7 @@ class Backend:
         axes = _norm_axes(axes, a.ndim)
         if self.fft_library == "pyfftw":
             return self._fftw_r2c(a, axes, out)
+        a = a.astype(self.dtype, copy=False)  # float32 runs stay in single precision (complex64)
         if self.is_gpu:
             res = self.xp.fft.rfftn(a, axes=axes)
         else:
