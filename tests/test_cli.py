@@ -79,3 +79,11 @@ def test_bench_command_runs(capsys):
     assert main(["bench", "--sizes", "16", "--levels", "1", "--repeats", "1"]) == 0
     out = capsys.readouterr().out
     assert "step/fft" in out and "forces" in out
+
+
+def test_set_parses_python_float_notation():
+    from vesicle_core.cli import _parse_set
+
+    # Snakemake hands params to the shell as Python writes them: 2e-05, not YAML's 2.0e-05
+    assert _parse_set(["dt=2e-05", "N=64", "Lambda=null", "dt_safety=0.4", "scheme=explicit"]) == {
+        "dt": 2e-05, "N": 64, "Lambda": None, "dt_safety": 0.4, "scheme": "explicit"}

@@ -85,7 +85,13 @@ def _parse_set(items):
         if "=" not in it:
             raise argparse.ArgumentTypeError(f"--set expects KEY=VALUE, got {it!r}")
         k, v = it.split("=", 1)
-        out[k.strip()] = yaml.safe_load(v)
+        val = yaml.safe_load(v)
+        if isinstance(val, str):  # YAML 1.1 reads "2e-05" (no dot) as a string; Python writes floats that way
+            try:
+                val = float(val)
+            except ValueError:
+                pass
+        out[k.strip()] = val
     return out
 
 
