@@ -33,25 +33,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from vesicle_core.backend import get_backend  # noqa: E402
+from vesicle_core.bench import interleaved_ms  # noqa: E402
 from vesicle_core.ibm import Coupler, Grid  # noqa: E402
 from vesicle_core.mesh import make_vesicle  # noqa: E402
 from vesicle_core.stokes import StokesSolver  # noqa: E402
-
-
-def interleaved_ms(fns, repeats, warmup=1):
-    """Median wall time (ms) of each callable, timed round-robin (one call of each per round) so
-    that drifts of the VM's speed hit all of them alike; returns (medians, minima)."""
-    for _ in range(warmup):
-        for fn in fns.values():
-            fn()
-    ts = {k: [] for k in fns}
-    for _ in range(repeats):
-        for k, fn in fns.items():
-            t0 = time.perf_counter()
-            fn()
-            ts[k].append(time.perf_counter() - t0)
-    return ({k: 1e3 * float(np.median(v)) for k, v in ts.items()},
-            {k: 1e3 * float(np.min(v)) for k, v in ts.items()})
 
 
 def main(argv=None):

@@ -19,16 +19,20 @@ import time
 import numpy as np
 
 
-def _interleaved(fns, repeats):
-    for fn in fns.values():
-        fn()
+def interleaved_ms(fns, repeats, warmup=1):
+    """Median and minimum wall time (ms) of each callable, timed round-robin (one call of each per round) so
+    that drifts of the machine's speed hit all of them alike."""
+    for _ in range(warmup):
+        for fn in fns.values():
+            fn()
     ts = {k: [] for k in fns}
     for _ in range(repeats):
         for k, fn in fns.items():
             t0 = time.perf_counter()
             fn()
             ts[k].append(time.perf_counter() - t0)
-    return {k: 1e3 * float(np.median(v)) for k, v in ts.items()}
+    return ({k: 1e3 * float(np.median(v)) for k, v in ts.items()},
+            {k: 1e3 * float(np.min(v)) for k, v in ts.items()})
 
 
 def bench_case(N, level, backend="numpy", repeats=10, scheme="projection", L=5.0):
@@ -71,7 +75,7 @@ def bench_case(N, level, backend="numpy", repeats=10, scheme="projection", L=5.0
         "step": step,
     }
     del spec
-    out = _interleaved(fns, repeats)
+    out = interleaved_ms(fns, repeats)[0]
     out.update(N=N, vertices=m.n_vertices, edge_over_h=m.quality()["edge_mean"] / (L / N), backend=be.name,
                ratio=out["step"] / out["fft"])
     return out
