@@ -37,7 +37,8 @@ def interleaved_ms(fns, repeats, warmup=1):
 
 def bench_case(N, level, backend="numpy", repeats=10, scheme="projection", L=5.0):
     from . import mesh as M
-    from .simulate import RunConfig, IBMSolver, State, _projected_displacement
+    from .integrators import SCHEMES
+    from .simulate import IBMSolver, RunConfig, State
 
     m = M.make_vesicle("icosphere", level=level)
     cfg = RunConfig(chi=67.0, N=N, L=L, scheme=scheme, backend=backend, dt=1e-6)
@@ -52,6 +53,7 @@ def bench_case(N, level, backend="numpy", repeats=10, scheme="projection", L=5.0
     axes = (1, 2, 3)
     spec = be.rfftn(grid, axes)
     state = State(X=X)
+    integ = SCHEMES[scheme](s, cfg.dt)
 
     def sync(a=None):
         if be.is_gpu:
@@ -60,7 +62,7 @@ def bench_case(N, level, backend="numpy", repeats=10, scheme="projection", L=5.0
 
     def step():
         Fs, g = s.forces(state.X)
-        dX = _projected_displacement(s, state, state.X, Fs, g, cfg.dt, cfg.chi, s.membrane.ref.area)
+        dX = integ.step(state, state.X, Fs, g, cfg.dt, cfg.chi)
         state.X = state.X + dX
         state.step += 1
         sync()

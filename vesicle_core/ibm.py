@@ -30,9 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError, check_range
+from .kernels import KERNELS
 from .kernels import stencil as _kernel_stencil
 
-STENCIL_WIDTH = 4  # Peskin's 4-point kernel, eq. (27)
+STENCIL_WIDTH = 4  # Peskin's 4-point kernel, eq. (27): the default
 STENCIL_SIZE = STENCIL_WIDTH**3
 
 
@@ -102,7 +103,7 @@ class Stencil:
         return int(self.idx.shape[0])
 
 
-def prepare(X, grid: Grid, backend, out: Stencil | None = None) -> Stencil:
+def prepare(X, grid: Grid, backend, out: Stencil | None = None, kernel: str = "peskin4") -> Stencil:
     """Stencil of the 4-point kernel (26)-(27) around the Lagrangian points X (M, 3).
 
     Computed once per time step and shared by spreading (28) and interpolation (29).
@@ -116,26 +117,31 @@ def prepare(X, grid: Grid, backend, out: Stencil | None = None) -> Stencil:
         raise ConfigError(f"X must have shape (M, 3), got {tuple(X.shape)}")
     N = grid.N
     M = X.shape[0]
-    idx, w = _kernel_stencil(X, grid.h, N, grid.origin, xp=xp)  # (M, 3, 4) each
+    if kernel not in KERNELS:
+        raise ConfigError(f"kernel must be one of {tuple(KERNELS)}, got {kernel!r}")
+    width = KERNELS[kernel]
+    size = width**3
+    idx, w = _kernel_stencil(X, grid.h, N, grid.origin, xp=xp, kernel=kernel)  # (M, 3, width) each
     dt = np.dtype(backend.dtype)
-    if (out is not None and tuple(out.idx.shape) == (M, STENCIL_SIZE) and out.idx.dtype == xp.intp
+    if (out is not None and tuple(out.idx.shape) == (M, size) and out.idx.dtype == xp.intp
             and out.w.dtype == dt and out.idx.flags.c_contiguous and out.w.flags.c_contiguous):
         flat, wt = out.idx, out.w
         out.N = N
     else:
         out = None
-        flat = xp.empty((M, STENCIL_SIZE), dtype=xp.intp)
-        wt = xp.empty((M, STENCIL_SIZE), dtype=dt)
+        flat = xp.empty((M, size), dtype=xp.intp)
+        wt = xp.empty((M, size), dtype=dt)
     # Column order within a row is (c, a, b) with a, b, c the offsets along x, y, z: any fixed
     # order of the 64 entries works (spread and interpolate only pair idx with w), and putting
     # the 16 (a, b) pairs innermost gives NumPy 16-long inner loops instead of 4-long ones
     # (~3x faster than the (a, b, c) broadcast).
     ix = idx[:, 0, :] * (N * N)
     iy = idx[:, 1, :] * N
-    sab = (ix[:, :, None] + iy[:, None, :]).reshape(M, 1, 16)
-    xp.add(sab, idx[:, 2, :, None], out=flat.reshape(M, STENCIL_WIDTH, 16))
-    pab = (w[:, 0, :, None] * w[:, 1, None, :]).reshape(M, 1, 16).astype(dt, copy=False)
-    xp.multiply(pab, w[:, 2, :, None].astype(dt, copy=False), out=wt.reshape(M, STENCIL_WIDTH, 16))
+    w2 = width * width
+    sab = (ix[:, :, None] + iy[:, None, :]).reshape(M, 1, w2)
+    xp.add(sab, idx[:, 2, :, None], out=flat.reshape(M, width, w2))
+    pab = (w[:, 0, :, None] * w[:, 1, None, :]).reshape(M, 1, w2).astype(dt, copy=False)
+    xp.multiply(pab, w[:, 2, :, None].astype(dt, copy=False), out=wt.reshape(M, width, w2))
     return out if out is not None else Stencil(flat, wt, N)
 
 
@@ -260,15 +266,16 @@ class Coupler:
     the grid returned by :meth:`spread` are overwritten by the next call of the same method.
     """
 
-    def __init__(self, grid: Grid, backend):
+    def __init__(self, grid: Grid, backend, kernel: str = "peskin4"):
         self.grid = grid
         self.backend = backend
+        self.kernel = kernel
         self.spreader = Spreader(grid, backend)
         self._stencil = None
         self._work = None
 
     def prepare(self, X) -> Stencil:
-        self._stencil = prepare(X, self.grid, self.backend, out=self._stencil)
+        self._stencil = prepare(X, self.grid, self.backend, out=self._stencil, kernel=self.kernel)
         return self._stencil
 
     def spread(self, F, stencil: Stencil | None = None):

@@ -1,15 +1,22 @@
-"""Peskin's regularised delta function, eqs. (26)-(27).
+"""Regularised delta functions of the immersed boundary method, eqs. (26)-(27).
 
-``phi`` is the 4-point kernel of eq. (27); ``delta3`` the tensor-product 3D delta of eq. (26).
-``stencil`` returns, for Lagrangian coordinates, the 4 grid indices per axis that the kernel
-touches and their weights; spreading (28) and interpolation (16, 29) share them so that the
-two operations are exact adjoints.
+``phi`` is Peskin's 4-point kernel of eq. (27) (the paper's); ``delta3`` the tensor-product 3D delta of
+eq. (26). ``stencil`` returns, for Lagrangian coordinates, the grid indices per axis that a kernel
+touches and their weights; spreading (28) and interpolation (16, 29) share them so that the two
+operations are exact adjoints. Three kernels (``KERNELS``):
 
-Moments (checked in tests): for any shift r,
-    sum_j phi(r - j) = 1,  sum_j (r - j) phi(r - j) = 0,  sum_j phi(r - j)^2 = 3/8.
+* ``"peskin4"``: Peskin's 4-point kernel, eq. (27). Moments: for any shift r,
+  sum_j phi(r - j) = 1, sum_j (r - j) phi(r - j) = 0, sum_j phi(r - j)^2 = 3/8.
+* ``"roma3"``: the 3-point kernel of Roma, Peskin & Berger, JCP 153 (1999): sum 1, first moment 0,
+  sum of squares 1/2; the narrowest support (27 nodes in 3D against 64).
+* ``"bao6"``: the 6-point kernel of Bao, Kaye & Peskin, JCP 316 (2016), K = 59/60 - sqrt(29)/20: three
+  continuous derivatives, first three moments zero, and a much smaller translation-invariance error
+  (216 nodes).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -39,8 +46,63 @@ def delta3(r, h, xp=None):
     return w[..., 0] * w[..., 1] * w[..., 2] / h**3
 
 
-def stencil(X, h, N, origin=0.0, xp=None):
-    """Indices and weights of the 4-point kernel around Lagrangian points.
+KERNELS = {"peskin4": 4, "roma3": 3, "bao6": 6}  # name -> support width (nodes per axis)
+
+# How far each kernel resolves a membrane mode: the IBM's relaxation rate of a sphere mode Y_l0 over the
+# linear theory follows exp(-(l h / a)^2) with this a (fitted over l h = 0.23-1.56 at N = 32 and 64, edge ~ 2h,
+# clean interface; benchmarks/bench_resolution.py). A wider kernel smears the membrane more.
+RESOLUTION_LENGTH = {"peskin4": 1.04, "roma3": 1.35, "bao6": 0.90}
+
+
+def mode_damping(l, h, kernel="peskin4"):
+    """IBM / theory rate ratio of a membrane mode l on a grid of spacing h (in R), the fit above."""
+    return np.exp(-((np.asarray(l, dtype=float) * h / RESOLUTION_LENGTH[kernel]) ** 2))
+_BAO_K = 59.0 / 60.0 - math.sqrt(29.0) / 20.0
+
+
+def phi_roma3(r, xp=np):
+    """Roma-Peskin-Berger 3-point kernel, elementwise; support |r| < 3/2."""
+    r = xp.abs(r)
+    inner = (1.0 + xp.sqrt(xp.clip(1.0 - 3.0 * r * r, 0.0, None))) / 3.0
+    outer = (5.0 - 3.0 * r - xp.sqrt(xp.clip(1.0 - 3.0 * (1.0 - r) ** 2, 0.0, None))) / 6.0
+    return xp.where(r <= 0.5, inner, xp.where(r <= 1.5, outer, 0.0))
+
+
+def _bao6_weights(r, xp=np):
+    """Bao-Kaye-Peskin 6-point weights at distances 2+r, 1+r, r, 1-r, 2-r, 3-r for r in [0, 1): (..., 6)."""
+    K = _BAO_K
+    r2, r3 = r * r, r * r * r
+    beta = 9.0 / 4.0 - 1.5 * (K + r2) + (22.0 / 3.0 - 7.0 * K) * r - 7.0 / 3.0 * r3
+    gamma = 0.25 * ((161.0 / 36.0 - 59.0 / 6.0 * K + 5.0 * K * K) * 0.5 * r2
+                    + (-109.0 / 24.0 + 5.0 * K) / 3.0 * r2 * r2 + 5.0 / 18.0 * r3 * r3)
+    disc = xp.clip(beta * beta - 112.0 * gamma, 0.0, None)
+    pm3 = (-beta + xp.sqrt(disc)) / 56.0  # sign(3/2 - K) = +1
+    pm2 = -3.0 * pm3 - 1.0 / 16.0 + (K + r2) / 8.0 + (3.0 * K - 1.0) * r / 12.0 + r3 / 12.0
+    pm1 = 2.0 * pm3 + 0.25 + (4.0 - 3.0 * K) * r / 6.0 - r3 / 6.0
+    p0 = 2.0 * pm3 + 5.0 / 8.0 - (K + r2) / 4.0
+    pp1 = -3.0 * pm3 + 0.25 - (4.0 - 3.0 * K) * r / 6.0 + r3 / 6.0
+    pp2 = pm3 - 1.0 / 16.0 + (K + r2) / 8.0 - (3.0 * K - 1.0) * r / 12.0 - r3 / 12.0
+    return xp.stack([pp2, pp1, p0, pm1, pm2, pm3], axis=-1)
+
+
+def phi_kernel(r, kernel="peskin4", xp=None):
+    """The 1D kernel ``kernel`` at distances r (in h), elementwise."""
+    xp = xp or _xp_of(r)
+    if kernel == "peskin4":
+        return phi(r, xp)
+    if kernel == "roma3":
+        return phi_roma3(xp.asarray(r, dtype=float) if xp is np else r, xp)
+    if kernel == "bao6":
+        r = xp.abs(xp.asarray(r, dtype=float) if xp is np else r)
+        fl = xp.floor(r)
+        w = _bao6_weights(r - fl, xp)  # w[..., 2] = phi(frac), w[..., 1] = phi(1 + frac), w[..., 0] = phi(2 + frac)
+        out = xp.where(fl == 0, w[..., 2], xp.where(fl == 1, w[..., 1], xp.where(fl == 2, w[..., 0], 0.0)))
+        return out
+    raise ValueError(f"kernel must be one of {tuple(KERNELS)}, got {kernel!r}")
+
+
+def stencil(X, h, N, origin=0.0, xp=None, kernel="peskin4"):
+    """Indices and weights of a kernel (default Peskin's 4-point) around Lagrangian points.
 
     Grid node ``m`` along an axis sits at ``origin + m h`` and the grid is periodic with N nodes.
 
@@ -53,12 +115,25 @@ def stencil(X, h, N, origin=0.0, xp=None):
 
     Returns
     -------
-    idx : int array (M, 3, 4)  periodic grid indices per axis.
-    w   : array (M, 3, 4)      phi((X - x_m)/h) per axis; the 3D weight is the product over axes
+    idx : int array (M, 3, w)  periodic grid indices per axis (w = KERNELS[kernel]).
+    w   : array (M, 3, w)      phi((X - x_m)/h) per axis; the 3D weight is the product over axes
                                (dimensionless: the 1/h^3 of eq. (26) is left to the caller).
     """
     xp = xp or _xp_of(X)
     s = (X - origin) / h
+    if kernel == "roma3":
+        c = xp.floor(s + 0.5)  # nearest node
+        d = s - c  # in [-1/2, 1/2)
+        w = xp.stack([phi_roma3(1.0 + d, xp), phi_roma3(d, xp), phi_roma3(1.0 - d, xp)], axis=-1)
+        j = c.astype(xp.int64)[..., None] - 1 + xp.arange(3, dtype=xp.int64)
+        return j % N, w
+    if kernel == "bao6":
+        fl = xp.floor(s)
+        w = _bao6_weights(s - fl, xp)
+        j = fl.astype(xp.int64)[..., None] - 2 + xp.arange(6, dtype=xp.int64)
+        return j % N, w
+    if kernel != "peskin4":
+        raise ValueError(f"kernel must be one of {tuple(KERNELS)}, got {kernel!r}")
     fl = xp.floor(s)
     r = s - fl  # in [0, 1): the point lies between nodes floor(s) and floor(s) + 1
     base = fl.astype(xp.int64) - 1

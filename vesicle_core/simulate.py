@@ -65,8 +65,9 @@ class RunConfig:
     K_volume: float = 1.0e7  # global volume penalty [kappa/R^3]; holds V without costing dt
     K_area: float = 0.0  # global area penalty [kappa/R^2]
     area_model: str = "voronoi"
-    scheme: str = "projection"  # "projection" (exact global area by a tension multiplier) | "explicit" (paper)
-    projection_refresh: int = 10  # steps between recomputations of M grad(A) (projection scheme)
+    kernel: str = "peskin4"  # regularised delta: "peskin4" (eq. 27), "roma3", "bao6" (kernels.py)
+    scheme: str = "projection"  # "projection" | "explicit" (paper) | "inextensible" (local tension solve)
+    projection_refresh: int = 10  # steps between refreshes of cached mobility data (projection, inextensible)
     stretch: float = 1.0  # max duration of the forward phase [gamma_dot t]
     stationary_tol: float = 0.0  # stop stretching when relative shape change per gamma_dot t < tol (0 = never)
     t_end: float = 3.0  # duration after the reversal [gamma_dot t]
@@ -78,6 +79,9 @@ class RunConfig:
     backend: str = "numpy"
     dtype: str = "float64"
     fft_workers: int = 1
+    cg_tol: float = 1.0e-6  # inextensible: CG tolerance, rms area strain of the residual
+    cg_maxiter: int = 200  # inextensible: CG iterations before the run stops (NumericalInstability)
+    dt_growth: float = 0.1  # inextensible, adaptive dt: e-folds of the fastest PA wrinkle mode per step
 
     def __post_init__(self):
         check_range("chi", self.chi, 0.0, 1e7)
@@ -92,6 +96,10 @@ class RunConfig:
         check_range("K_area", self.K_area, 0.0, 1e12)
         if self.area_model not in B.AREA_MODELS:
             raise ConfigError(f"area_model must be one of {B.AREA_MODELS}, got {self.area_model!r}")
+        from .kernels import KERNELS
+
+        if self.kernel not in KERNELS:
+            raise ConfigError(f"kernel must be one of {tuple(KERNELS)}, got {self.kernel!r}")
         if self.scheme not in SCHEMES:
             raise ConfigError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
         check_range("projection_refresh", self.projection_refresh, 1, 10000, integer=True)
@@ -108,6 +116,11 @@ class RunConfig:
         check_range("checkpoint_every", self.checkpoint_every, 1, None, integer=True)
         check_range("max_drift", self.max_drift, 0.0, 1.0, lo_open=True)
         check_range("fft_workers", self.fft_workers, 1, 256, integer=True)
+        check_range("cg_tol", self.cg_tol, 0.0, 1e-2, lo_open=True)
+        check_range("cg_maxiter", self.cg_maxiter, 1, 100000, integer=True)
+        check_range("dt_growth", self.dt_growth, 0.0, 1.0, lo_open=True)
+        if self.scheme == "inextensible" and self.Re > 0:
+            raise ConfigError("scheme 'inextensible' solves steady Stokes (Re = 0); got Re = %g" % self.Re)
         if self.chi == 0 and self.stretch > 0:
             raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
 
@@ -134,7 +147,7 @@ class RunConfig:
         unknown = sorted(set(d) - names)
         if unknown:
             raise ConfigError(f"unknown run parameter(s) {unknown}; allowed: {sorted(names)}")
-        for k in ("N", "checkpoint_every", "fft_workers"):
+        for k in ("N", "checkpoint_every", "fft_workers", "cg_maxiter", "projection_refresh"):
             if k in d and isinstance(d[k], float) and d[k].is_integer():
                 d = {**d, k: int(d[k])}
         return cls(**d)
@@ -148,7 +161,7 @@ class RunConfig:
         return out
 
 
-SCHEMES = ("explicit", "projection")
+SCHEMES = ("explicit", "projection", "inextensible")
 
 
 def default_lambda(chi: float, scheme: str = "explicit") -> float:
@@ -160,7 +173,11 @@ def default_lambda(chi: float, scheme: str = "explicit") -> float:
     projection: a global multiplier carries the mean tension and holds the total area exactly; the local
                 penalty only has to resist tension *differences* along the membrane, so it is 10x softer
                 (1.5e3 chi, floor 1e4), which makes the explicit step limit 40 h/Lambda 10x larger.
+    inextensible: Lambda is the area-stretch modulus of the constraint (strain sigma/Lambda), treated
+                implicitly, so it costs no time step: 5e4 chi (floor 1e6) keeps the strain near 5e-4.
     """
+    if scheme == "inextensible":
+        return max(1.0e6, 5.0e4 * chi)
     if scheme == "projection":
         return max(1.0e4, 1.5e3 * chi)
     return max(1.0e5, 1.5e4 * chi)
@@ -199,10 +216,12 @@ class IBMSolver:
         self.xp = xp
         self.grid = Grid(cfg.N, cfg.L)
         self.stokes = StokesSolver(self.grid, self.be, rho_bar=cfg.rho_bar)
-        self.coupler = Coupler(self.grid, self.be)  # reused stencil and grid buffers (no page faults per step)
+        self.coupler = Coupler(self.grid, self.be, kernel=cfg.kernel)  # reused stencil and grid buffers (no page faults per step)
         self._grid_buf = self.be.empty(self.grid.field_shape)
+        # the inextensible scheme carries the tension as an unknown: no penalty (A5) in the force
+        penalty = 0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff
         self.membrane = B.Membrane.from_mesh(
-            xp.asarray(X0, dtype=xp.float64), faces, xp=xp, Lambda=cfg.Lambda_eff, K_volume=cfg.K_volume,
+            xp.asarray(X0, dtype=xp.float64), faces, xp=xp, Lambda=penalty, K_volume=cfg.K_volume,
             K_area=cfg.K_area, area_model=cfg.area_model,
         )
 
@@ -237,16 +256,16 @@ def background_velocity(X, rate):
     return bv(X, rate)
 
 
-def formula_dt(cfg: RunConfig, edge_mean: float) -> float:
+def formula_dt(cfg: RunConfig, edge_mean: float, flow: bool = True) -> float:
     """Stable-step estimate (tau) from CALIBRATION.md: area penalty 40 h/Lambda, bending 13 h^3 (edge ~ h)
     to 20 h^3 (edge ~ 2h), and 0.01/chi so the background flow moves a vertex by < 1% of R per step."""
     h = cfg.h
-    lam = cfg.Lambda_eff + cfg.K_area
+    lam = (0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff) + cfg.K_area
     c_b = 13.0 + 7.0 * min(max(edge_mean / h - 1.0, 0.0), 1.0)
     limits = [c_b * h**3]
     if lam > 0:
         limits.append(40.0 * h / lam)
-    if cfg.chi > 0:
+    if cfg.chi > 0 and flow:
         limits.append(0.01 / cfg.chi)
     return min(limits)
 
@@ -289,6 +308,10 @@ class State:
     shape_prev: tuple = ()  # second moments at the previous output (stationarity test)
     sigma_g: float = 0.0  # global tension multiplier of the projection scheme [kappa/R^2]
     w: object = None  # cached M grad(A) of the projection scheme, (V, 3)
+    sigma: object = None  # per-triangle tension of the inextensible scheme, (F,)
+    sigma_prev: object = None  # the one before (warm start by extrapolation)
+    next_output_t: float = 0.0  # tau of the next frame (adaptive steps)
+    cg_iterations: list = None  # per step (inextensible)
 
 
 def _save_checkpoint(path: Path, state: State, be, u_hat):
@@ -297,6 +320,11 @@ def _save_checkpoint(path: Path, state: State, be, u_hat):
     data = {"X": (("n_node", "xyz"), be.asnumpy(state.X))}
     if state.w is not None:
         data["w"] = (("n_node", "xyz"), be.asnumpy(state.w))
+    for name in ("sigma", "sigma_prev"):
+        if getattr(state, name) is not None:
+            data[name] = (("n_face",), be.asnumpy(getattr(state, name)))
+    if state.cg_iterations:
+        data["cg_iterations"] = (("n_step",), np.asarray(state.cg_iterations, dtype=np.int32))
     if u_hat is not None:
         dims = ("xyz", "kx", "ky", "kz")
         data["u_hat_re"] = (dims, u_hat.real)
@@ -305,6 +333,7 @@ def _save_checkpoint(path: Path, state: State, be, u_hat):
         "t": state.t, "step": state.step, "phase": state.phase, "t_reverse": state.t_reverse,
         "n_frames": state.n_frames, "next_output": state.next_output, "dt": state.dt,
         "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
+        "next_output_t": state.next_output_t,
     }
     atomic_to_netcdf(xr.Dataset(data, attrs=attrs), path)
 
@@ -323,6 +352,10 @@ def _load_checkpoint(path: Path, xp):
         t_reverse=float(a["t_reverse"]), n_frames=int(a["n_frames"]), next_output=int(a["next_output"]),
         dt=float(a["dt"]), shape_prev=tuple(np.atleast_1d(a["shape_prev"]).tolist()), sigma_g=float(a["sigma_g"]),
         w=xp.asarray(ds["w"].values) if "w" in ds else None,
+        sigma=xp.asarray(ds["sigma"].values) if "sigma" in ds else None,
+        sigma_prev=xp.asarray(ds["sigma_prev"].values) if "sigma_prev" in ds else None,
+        next_output_t=float(a.get("next_output_t", 0.0)),
+        cg_iterations=[int(v) for v in ds["cg_iterations"].values] if "cg_iterations" in ds else [],
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
@@ -332,7 +365,7 @@ class TrajectoryWriter:
     """Appends frames to trajectory.partial.nc (unlimited time dimension); finalize() renames it."""
 
     FRAME_VARS = ("t_tau", "tension", "area", "volume", "area_drift", "volume_drift", "bending_energy",
-                  "tension_energy", "flow_sign")
+                  "tension_energy", "flow_sign", "dt_tau", "cg_iterations")
 
     def __init__(self, outdir: Path, faces, n_nodes: int, attrs: dict, resume_frames: int | None):
         self.path = outdir / PARTIAL
@@ -362,9 +395,10 @@ class TrajectoryWriter:
                 v.units = "R"
             v = nc.createVariable("face_tension", "f4", ("time", "n_face"), zlib=True, complevel=1)
             v.units = "kappa/R^2"
-            v.long_name = "local surface tension Lambda (A_l - A_l0)/A_l0 per triangle"
+            v.long_name = "local surface tension per triangle (penalty Lambda (A_l - A_l0)/A_l0, or the solved tension)"
             units = {"t_tau": "tau", "tension": "kappa/R^2", "area": "R^2", "volume": "R^3", "area_drift": "1",
-                     "volume_drift": "1", "bending_energy": "kappa", "tension_energy": "kappa", "flow_sign": "1"}
+                     "volume_drift": "1", "bending_energy": "kappa", "tension_energy": "kappa", "flow_sign": "1",
+                     "dt_tau": "tau", "cg_iterations": "1"}
             for name in self.FRAME_VARS:
                 v = nc.createVariable(name, "f8", ("time",))
                 v.units = units[name]
@@ -418,33 +452,6 @@ class TrajectoryWriter:
         return final
 
 
-# --------------------------------------------------------------------------- projection scheme
-def _projected_displacement(solver: IBMSolver, state: State, X, F, geo, dt, rate, A0):
-    """Step with a global tension multiplier sigma_g that keeps the total area at A0.
-
-    The membrane force gets the extra term -sigma_g grad A (a uniform tension). sigma_g is predicted
-    from the previous step, then corrected by d_sigma so that the linearised area change of the step
-    cancels the current area error: grad A . dX = A0 - A. The correction's flow uses w = M grad A,
-    refreshed every ``projection_refresh`` steps (only the small correction d_sigma uses the cached
-    w, so the error is second order). Costs one extra Stokes solve per refresh. w is the steady-Stokes
-    response; at finite Re the main solve still uses the exponential update (23), and the correction's
-    flow is then off by the fluid's inertial relaxation, O(Re) (Re ~ 2e-4 in the paper).
-    """
-    xp = solver.xp
-    cfg = solver.cfg
-    gradA = -geo.H  # (V, 3): dA/dX = -H, eq. (24)
-    refresh = state.w is None or state.step % cfg.projection_refresh == 0
-    if refresh:
-        state.w = solver.induced_displacement(X, gradA, 1.0, advance=False)
-    dX = solver.induced_displacement(X, F - state.sigma_g * gradA, dt, same_points=refresh)
-    if cfg.chi > 0:
-        dX = dX + background_velocity(X, rate) * dt
-    A = float(geo.area.sum())
-    d_sigma = (float(xp.sum(gradA * dX)) + (A - A0)) / (dt * float(xp.sum(gradA * state.w)))
-    state.sigma_g += d_sigma
-    return dX - (dt * d_sigma) * state.w
-
-
 # --------------------------------------------------------------------------- the run
 def _shape_moments(X, xp):
     c = X - X.mean(axis=0)
@@ -490,9 +497,10 @@ class _Progress:
 def _reverse(state: State, bar, relax_steps, cfg: RunConfig, stationary: bool):
     """Flip the background flow (Fig. 1): the reversal time t0 is the current time."""
     state.phase, state.t_reverse = "relax", state.t
-    bar.total = state.step + relax_steps
-    if bar.bar is not None:
-        bar.bar.total = bar.total
+    if relax_steps is not None:  # step-count progress; adaptive runs count simulated time instead
+        bar.total = state.step + relax_steps
+        if bar.bar is not None:
+            bar.bar.total = bar.total
     log.info("flow reversed at gamma_dot t = %.4f (%s)", state.t * cfg.chi,
              "shape stationary" if stationary else "end of the stretching phase")
 
@@ -527,7 +535,14 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         state = State(X=xp.asarray(mesh.vertices, dtype=xp.float64))
         edge = mesh.quality()["edge_mean"]
         dt_f = formula_dt(cfg, edge)
-        if isinstance(cfg.dt, str):
+        if isinstance(cfg.dt, str) and cfg.scheme == "inextensible":
+            # the stability limit of the bending force; the integrator adds tension, growth and flow limits
+            dt = 2.0 * formula_dt(cfg, edge, flow=False)
+            if cfg.dt == "power":
+                dt_p, lam = power_dt(solver, state.X)
+                log.info("power iteration (bending): |lam|max = %.4g /tau -> dt_crit = %.4g tau", lam, dt_p)
+                dt = min(dt_p, dt)
+        elif isinstance(cfg.dt, str):
             if cfg.dt == "power":
                 dt_p, lam = power_dt(solver, state.X)
                 dt = cfg.dt_safety * min(dt_p, 2.0 * dt_f)
@@ -543,6 +558,15 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         if cfg.stretch == 0:
             state.phase, state.t_reverse = "relax", 0.0
 
+    from .integrators import SCHEMES as INTEGRATORS
+
+    integ = INTEGRATORS[cfg.scheme](solver, dt)
+    adaptive = integ.adaptive and isinstance(cfg.dt, str)
+    integ.adaptive = adaptive
+    if state.cg_iterations is None:
+        state.cg_iterations = []
+    if hasattr(integ, "iterations"):
+        integ.iterations = state.cg_iterations
     out_steps = max(1, int(round(cfg.output_every * T / dt)))
     stretch_steps = int(math.ceil(cfg.stretch * T / dt))
     relax_steps = int(math.ceil(cfg.t_end * T / dt))
@@ -551,6 +575,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         **{f"mesh_{k}": v for k, v in mesh.attrs.items() if isinstance(v, (int, float, str, np.number))},
         **{k: v for k, v in cfg.as_attrs().items()},
         "delta": float(mesh.excess_area()), "dt_tau": dt, "dt_gamma": dt * cfg.chi, "A0": A0, "V0": V0,
+        "dt_rule": "adaptive (bending, tension, PA growth, flow)" if adaptive else "fixed",
         "backend": be.name, "source": f"vesicle_core {__version__}", "Conventions": "CF-1.10",
         "title": "IBM trajectory of a vesicle in a reversed elongational flow",
         "rho_bar": cfg.rho_bar,
@@ -563,20 +588,26 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
 
     writer = TrajectoryWriter(outdir, mesh.faces, mesh.n_vertices, attrs, state.n_frames if resumed else None)
 
-    if state.phase == "relax":
-        total_est = int(round(state.t_reverse / dt)) + relax_steps
+    if adaptive:  # progress in per mille of the simulated time
+        total_est = 1000
+        done_frac = 0 if state.phase == "stretch" else int(1000 * cfg.stretch / max(cfg.stretch + cfg.t_end, 1e-300))
+        bar = _Progress(total_est, done_frac, progress)
     else:
-        total_est = stretch_steps + relax_steps
-    bar = _Progress(total_est, state.step, progress)
+        if state.phase == "relax":
+            total_est = int(round(state.t_reverse / dt)) + relax_steps
+        else:
+            total_est = stretch_steps + relax_steps
+        bar = _Progress(total_est, state.step, progress)
     wall0 = _time.perf_counter()
     steps_this_call = 0
+    eps_t = 1e-9 * T
+    t_stretch_end = cfg.stretch * T
+    t_out = cfg.output_every * T
 
-    def frame(X, F, geo):
-        sig_l = B.local_tension(geo, mem.ref, mem.Lambda)
+    def frame(X, F, geo, dt_step):
+        sig_l = integ.face_tension(state, geo)
         A = float(geo.area.sum())
         V = B.enclosed_volume(X, mem.topo, geo)
-        # the projection scheme's multiplier is a uniform tension on top of the penalty's local one
-        sig_l = sig_l + state.sigma_g
         sig = B.global_tension(geo, sig_l) + (cfg.K_area * (A - A0) / A0 if cfg.K_area else 0.0)
         flow_sign = 1.0 if state.phase == "stretch" else -1.0
         sc = {"t_tau": state.t, "tension": sig, "area": A, "volume": V, "area_drift": A / A0 - 1,
@@ -587,6 +618,8 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         if abs(sc["area_drift"]) > cfg.max_drift or abs(sc["volume_drift"]) > cfg.max_drift:
             fail(f"area drift {sc['area_drift']:.3%} or volume drift {sc['volume_drift']:.3%} exceeds "
                  f"max_drift = {cfg.max_drift:g}; lower dt or raise Lambda", X)
+        sc["dt_tau"] = dt_step
+        sc["cg_iterations"] = float(state.cg_iterations[-1]) if state.cg_iterations else 0.0
         writer.append(be.asnumpy(X), be.asnumpy(sig_l).astype(np.float32), sc)
         state.n_frames += 1
         return sc
@@ -600,40 +633,74 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         bar.close()
         raise NumericalInstability(f"{msg} (step {state.step}, t = {state.t:.6g} tau); state written to {outdir / FAILURE}")
 
+    def next_frame_time():
+        base = state.t_reverse if state.phase == "relax" else 0.0
+        k = math.floor((state.t - base) / t_out + 0.5)
+        return base + (k + 1) * t_out
+
+    dt_step = 0.0 if adaptive else dt  # the step that led to the frame (none before the first)
     try:
         while True:
             X = state.X
-            # phase changes depend on the step count only, so a resumed run takes them at the same steps
-            if state.phase == "stretch" and state.step >= stretch_steps:
-                _reverse(state, bar, relax_steps, cfg, stationary=False)
-                state.next_output = state.step  # a frame at t0 exactly; later frames every output_every
-            done = state.phase == "relax" and state.t - state.t_reverse >= cfg.t_end * T - 0.5 * dt
-            if done:
-                state.next_output = state.step  # the last frame is always written
+            if adaptive:
+                if state.phase == "stretch" and state.t >= t_stretch_end - eps_t:
+                    _reverse(state, bar, None, cfg, stationary=False)
+                    state.next_output_t = state.t
+                done = state.phase == "relax" and state.t >= state.t_reverse + cfg.t_end * T - eps_t
+                if done:
+                    state.next_output_t = state.t
+                output_due = state.t >= state.next_output_t - eps_t
+            else:
+                # phase changes depend on the step count only, so a resumed run takes them at the same steps
+                if state.phase == "stretch" and state.step >= stretch_steps:
+                    _reverse(state, bar, relax_steps, cfg, stationary=False)
+                    state.next_output = state.step  # a frame at t0 exactly; later frames every output_every
+                done = state.phase == "relax" and state.t - state.t_reverse >= cfg.t_end * T - 0.5 * dt
+                if done:
+                    state.next_output = state.step  # the last frame is always written
+                output_due = state.step == state.next_output
             F, geo = solver.forces(X)
-            if state.step == state.next_output:
-                sc = frame(X, F, geo)
+            if output_due:
+                sc = frame(X, F, geo, dt_step)
                 state.next_output = state.step + out_steps
+                state.next_output_t = next_frame_time()
                 t_show = cfg.chi * (state.t - state.t_reverse) if state.phase == "relax" else cfg.chi * state.t
-                bar.update(state.step, f"{state.phase} gt={t_show:.3f} sigma={sc['tension']:.4g} dA={sc['area_drift']:.1e}")
+                info = f"{state.phase} gt={t_show:.3f} sigma={sc['tension']:.4g} dA={sc['area_drift']:.1e}"
+                if adaptive:
+                    info += f" dt={dt_step:.2e} cg={sc['cg_iterations']:.0f}"
+                    T_all = (cfg.stretch + cfg.t_end) * T
+                    t_done = state.t if state.phase == "stretch" else t_stretch_end + state.t - state.t_reverse
+                    bar.update(min(1000, int(1000 * t_done / max(T_all, 1e-300))), info)
+                else:
+                    bar.update(state.step, info)
                 if state.phase == "stretch" and cfg.stationary_tol > 0 and state.step > 0:
                     mom = _shape_moments(X, xp)
-                    rate = max(abs(a - b) / b for a, b in zip(mom, state.shape_prev)) / cfg.output_every
+                    rate = max(abs(a - b) / b for a, b in zip(mom, state.shape_prev, strict=True)) / cfg.output_every
                     state.shape_prev = mom
                     if rate < cfg.stationary_tol:
-                        _reverse(state, bar, relax_steps, cfg, stationary=True)  # this frame is at t0
+                        _reverse(state, bar, None if adaptive else relax_steps, cfg, stationary=True)  # frame at t0
+                        state.next_output_t = next_frame_time()
             if done:
                 break
             rate = cfg.chi * (1.0 if state.phase == "stretch" else -1.0)
-            if cfg.scheme == "projection":
-                dX = _projected_displacement(solver, state, X, F, geo, dt, rate, A0)
+            if adaptive:
+                # land exactly on the next frame, the reversal or the end, in equal steps
+                t_event = state.next_output_t
+                t_event = min(t_event, t_stretch_end if state.phase == "stretch"
+                              else state.t_reverse + cfg.t_end * T)
+                dt_want = integ.next_dt(state, geo)
+                if not dt_want > 1e-14 * T:
+                    fail(f"time step collapsed to {dt_want:.3g} tau", X)
+                remaining = t_event - state.t
+                dt_step = remaining / max(1, math.ceil(remaining / dt_want - 1e-6))
             else:
-                dX = solver.induced_displacement(X, F, dt)
-                if cfg.chi > 0:
-                    dX = dX + background_velocity(X, rate) * dt
+                dt_step = dt
+            dX = integ.step(state, X, F, geo, dt_step, rate)
             state.X = X + dX
             state.step += 1
-            state.t = state.t + dt
+            state.t = state.t + dt_step
+            if adaptive and abs(state.t - t_event) < eps_t:
+                state.t = t_event
             steps_this_call += 1
             if state.step % 16 == 0 and not bool(xp.isfinite(state.X).all()):
                 fail("NaN or Inf in vertex positions (time step too large?)", X)
@@ -642,13 +709,17 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
             if stop_after_steps is not None and steps_this_call >= stop_after_steps:
                 bar.close()
                 return None
+    except NumericalInstability as exc:
+        if not (outdir / FAILURE).exists():  # raised inside a solve (e.g. CG did not converge)
+            fail(str(exc), state.X)
+        raise
     except KeyboardInterrupt:
         bar.close()
         log.warning("interrupted at step %d; rerun the same command to resume from the last checkpoint", state.step)
         raise
     bar.close()
     wall = _time.perf_counter() - wall0
-    extra = {"steps": state.step, "wall_time_s_last_call": wall,
+    extra = {**integ.stats(), "steps": state.step, "wall_time_s_last_call": wall,
              "t_reverse_tau": state.t_reverse, "t_reverse_gamma": state.t_reverse * cfg.chi, "resumed": int(resumed)}
     path = writer.finalize(state.t_reverse, cfg.chi, extra)
     ckpt.unlink(missing_ok=True)

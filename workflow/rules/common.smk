@@ -16,9 +16,9 @@ from vesicle_core.units import S_from_chi, chi_from_S
 
 # the order in which run parameters are passed to `vesicle run --set`
 RUN_KEYS = (
-    "N", "L", "Re", "Lambda", "K_volume", "K_area", "area_model", "scheme", "projection_refresh", "stretch",
-    "stationary_tol", "t_end", "dt", "dt_safety", "output_every", "checkpoint_every", "max_drift", "backend",
-    "dtype", "fft_workers",
+    "N", "L", "Re", "Lambda", "K_volume", "K_area", "area_model", "kernel", "scheme", "projection_refresh",
+    "stretch", "stationary_tol", "t_end", "dt", "dt_safety", "output_every", "checkpoint_every", "max_drift",
+    "backend", "dtype", "fft_workers", "cg_tol", "cg_maxiter", "dt_growth",
 )
 
 

@@ -21,12 +21,13 @@ SIMULATE_SHELL = (
     "vesicle run {input.mesh} -o {params.outdir} --quiet --set chi={params.chi}"
     " --set N={params.N} --set L={params.L} --set Re={params.Re}"
     " --set Lambda={params.Lambda} --set K_volume={params.K_volume} --set K_area={params.K_area}"
-    " --set area_model={params.area_model} --set scheme={params.scheme}"
+    " --set area_model={params.area_model} --set kernel={params.kernel} --set scheme={params.scheme}"
     " --set projection_refresh={params.projection_refresh} --set stretch={params.stretch}"
     " --set stationary_tol={params.stationary_tol} --set t_end={params.t_end} --set dt={params.dt}"
     " --set dt_safety={params.dt_safety} --set output_every={params.output_every}"
     " --set checkpoint_every={params.checkpoint_every} --set max_drift={params.max_drift}"
     " --set backend={params.backend} --set dtype={params.dtype} --set fft_workers={params.fft_workers}"
+    " --set cg_tol={params.cg_tol} --set cg_maxiter={params.cg_maxiter} --set dt_growth={params.dt_growth}"
     " > {log} 2>&1"
 )
 

@@ -1,0 +1,141 @@
+"""The inextensible scheme: the tension operator (symmetry, positivity, exact gradients), the PCG solve
+(linearised constraint met, failure is loud), and whole runs (area held, resume identical)."""
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from vesicle_core import membrane as B
+from vesicle_core import mesh as Mm
+from vesicle_core.errors import NumericalInstability
+from vesicle_core.mobility import IBMMobility
+from vesicle_core.simulate import CHECKPOINT, FAILURE, TRAJECTORY, IBMSolver, RunConfig, run
+from vesicle_core.tension import (TensionSolver, cell_areas, dual_areas, face_D, face_DT, vertex_D, vertex_DT,
+                                  vertex_mean)
+
+
+@pytest.fixture(scope="module")
+def setup():
+    m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
+    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible")
+    s = IBMSolver(m.faces, m.vertices, cfg)
+    X = s.xp.asarray(m.vertices)
+    F, geo = s.forces(X)
+    mob = IBMMobility(s.coupler, s.stokes)
+    mob.prepare(X)
+    return m, s, X, F, geo, mob
+
+
+@pytest.mark.parametrize("cells", ["face", "vertex"])
+def test_operator_symmetric_and_positive(setup, cells):
+    _, s, _, _, geo, mob = setup
+    topo = s.membrane.topo
+    ts = TensionSolver(mob, topo, cell_areas(geo, topo, cells), 1e6, cells=cells)
+    rng = np.random.default_rng(1)
+    n = ts.A0.shape[0]
+    for _ in range(3):
+        u, v = rng.standard_normal(n), rng.standard_normal(n)
+        Au, _ = ts.operator(u, geo, 1e-4)
+        Av, _ = ts.operator(v, geo, 1e-4)
+        assert abs(v @ Au - u @ Av) <= 1e-12 * abs(v @ Au)  # symmetric to round-off
+        assert u @ Au > 0 and v @ Av > 0
+        # positive beyond the compliance alone: the mobility part is positive semi-definite
+        assert u @ Au - u @ (ts.A0 * u) / ts.Lambda >= -1e-12 * (u @ Au)
+
+
+@pytest.mark.parametrize("D, DT, areas", [(face_D, face_DT, lambda g, t: g.area), (vertex_D, vertex_DT, dual_areas)])
+def test_DT_is_the_gradient_of_the_cell_areas(setup, D, DT, areas):
+    m, s, X, _, geo, _ = setup
+    topo = s.membrane.topo
+    rng = np.random.default_rng(2)
+    sig = rng.standard_normal(areas(geo, topo).shape[0])
+    dX = rng.standard_normal(X.shape)
+    eps = 1e-6
+
+    def energy(Y):
+        return float(sig @ areas(B.geometry(Y, topo), topo))
+
+    fd = (energy(X + eps * dX) - energy(X - eps * dX)) / (2 * eps)
+    assert fd == pytest.approx(float(np.sum(DT(sig, geo, topo) * dX)), rel=1e-7)
+    # D is the adjoint of D^T
+    assert float(sig @ D(dX, geo, topo)) == pytest.approx(float(np.sum(DT(sig, geo, topo) * dX)), rel=1e-12)
+
+
+def test_solve_meets_the_linearised_constraint(setup):
+    _, s, X, F, geo, mob = setup
+    topo = s.membrane.topo
+    Lam, dt = 1e6, 2e-4
+    ts = TensionSolver(mob, topo, geo.area.copy(), Lam, tol=1e-10, maxiter=500)
+    u_inf = s.xp.asarray(np.c_[X[:, 0], -X[:, 1], 0 * X[:, 2]] * 50.0)
+    err = 1e-4 * np.random.default_rng(3).standard_normal(geo.area.shape[0]) * geo.area
+    sigma, U = ts.solve(geo, F, u_inf, err, dt, np.zeros_like(err))
+    # the returned velocity is the velocity of the returned tension
+    U_direct = mob.apply(F - face_DT(sigma, geo, topo)) + u_inf
+    assert np.abs(U - U_direct).max() <= 1e-8 * np.abs(U_direct).max()
+    # linearised area after the step = compliance strain
+    new_area_error = err + dt * face_D(U, geo, topo)
+    assert np.sqrt(np.mean(((new_area_error - geo.area * sigma / Lam) / geo.area) ** 2)) <= 1e-10
+    assert ts.last.iterations > 0
+
+
+def test_unconverged_solve_raises(setup):
+    _, s, X, F, geo, mob = setup
+    ts = TensionSolver(mob, s.membrane.topo, geo.area.copy(), 1e7, tol=1e-14, maxiter=2)
+    with pytest.raises(NumericalInstability, match="did not converge"):
+        ts.solve(geo, F, 0.0, 0 * geo.area, 1e-3, 0 * geo.area)
+
+
+def _run_cfg(**kw):
+    base = dict(chi=50.0, N=16, scheme="inextensible", stretch=0.3, t_end=0.2, output_every=0.05)
+    return RunConfig(**{**base, **kw})
+
+
+@pytest.fixture(scope="module")
+def inext_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("inext")
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    return m, xr.open_dataset(run(m, _run_cfg(), d, progress=False)).load()
+
+
+def test_inextensible_run_holds_every_triangle(inext_run):
+    m, ds = inext_run
+    X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
+    topo = B.Topology(m.faces, m.n_vertices)
+    a0 = B.geometry(X[0], topo).area
+    lam = ds.attrs["Lambda_eff"]
+    for k in range(X.shape[0]):
+        g = B.geometry(X[k], topo)
+        strain = g.area / a0 - 1
+        # the strain is the compliance sigma / Lambda of the solved tension, nothing else
+        assert np.abs(strain - ds.face_tension.values[k] / lam).max() < 2e-4
+    assert ds.attrs["cg_iterations_max"] >= 1
+    # frames at the configured instants, exactly: the adaptive step lands on them
+    assert np.allclose(np.diff(ds.time.values), 0.05, atol=1e-9)
+    # stretched in the forward flow: positive tension; after the reversal it turns negative
+    assert ds.tension.sel(time=0.0, method="nearest") > 0
+    assert ds.tension.values[-1] < ds.tension.sel(time=0.0, method="nearest")
+
+
+def test_inextensible_resume_is_identical(tmp_path):
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    cfg = _run_cfg(checkpoint_every=7)
+    ref = xr.open_dataset(run(m, cfg, tmp_path / "a", progress=False)).load()
+    assert run(m, cfg, tmp_path / "b", progress=False, stop_after_steps=10) is None
+    assert (tmp_path / "b" / CHECKPOINT).exists() and not (tmp_path / "b" / TRAJECTORY).exists()
+    res = xr.open_dataset(run(m, cfg, tmp_path / "b", progress=False)).load()
+    assert res.attrs["steps"] == ref.attrs["steps"]
+    np.testing.assert_array_equal(res.node_x.values, ref.node_x.values)
+    np.testing.assert_array_equal(res.face_tension.values, ref.face_tension.values)
+
+
+def test_failed_tension_solve_stops_the_run(tmp_path):
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    with pytest.raises(NumericalInstability, match="tension solve"):
+        run(m, _run_cfg(cg_tol=1e-14, cg_maxiter=1), tmp_path, progress=False)
+    assert (tmp_path / FAILURE).exists() and not (tmp_path / TRAJECTORY).exists()
+
+
+def test_vertex_mean_of_uniform_is_uniform(setup):
+    _, s, _, _, geo, _ = setup
+    v = vertex_mean(np.full(geo.area.shape[0], 3.5), geo, s.membrane.topo)
+    assert np.allclose(v, 3.5)

@@ -1,0 +1,154 @@
+"""Single-mode relaxation: the IBM's decay rate of a shape mode against linear Stokes theory (resolution test).
+
+A sphere of radius R = 1 is perturbed by one real spherical harmonic, r = R (1 + eps Y_l0), with no
+background flow. The IBM velocity of this shape, projected on the mode, gives the relaxation rate
+omega_l = -<u_n, Y_l0> / (eps R <Y_l0, Y_l0>) (quadrature with the dual-cell areas), in 1/tau,
+tau = mu R^3 / kappa: the time unit of the perturbation analysis, so the two time axes are compared
+directly. Two membranes, equal viscosities inside and outside:
+
+* ``"clean"``: bending force only, no tension, no area constraint -- a clean interface (Lamb's drop modes).
+  A normal force density f_n Y_lm on a sphere moves it radially at u_r = m_l f_n R / mu with
+  m_l = 2 l (l+1) / ((2l-1)(2l+1)(2l+3)) (at l = 2 with an interfacial tension gamma this is Taylor's rate
+  40 (lam+1) / ((2 lam+3)(19 lam+16)) gamma / (mu R) at lam = 1). The Helfrich force of the mode is
+  f_n = -kappa (l-1) l (l+1) (l+2) eps / R^3, so omega_l = m_l (l-1) l (l+1) (l+2); an imposed uniform tension
+  sigma_0 adds m_l (l-1)(l+2) sigma_0.
+* ``"inextensible"``: the local area constraint of :mod:`vesicle_core.tension` (a quasi-spherical vesicle):
+  omega_l = Gamma_l + A_l sigma_0 of eq. (11), the perturbation analysis' own rates.
+
+:func:`resolution_table` reports l_res: the highest l whose rate ratio IBM / theory stays within a
+tolerance (5%) of 1 for every l up to it, on a given grid. l_* grows like S^0.4, so this says which N a
+given flow strength needs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError, check_range
+
+
+def clean_mobility(l):
+    """Normal mobility of a clean, equal-viscosity spherical interface for mode l [R / mu]."""
+    l = np.asarray(l, dtype=float)
+    return 2.0 * l * (l + 1.0) / ((2.0 * l - 1.0) * (2.0 * l + 1.0) * (2.0 * l + 3.0))
+
+
+def theory_rate(l, membrane="clean", sigma0=0.0):
+    """Linear relaxation rate of mode l in 1/tau (see the module docstring)."""
+    from .theory import a_l, gamma_l
+
+    l = np.asarray(l, dtype=float)
+    if membrane == "clean":
+        return clean_mobility(l) * ((l - 1) * l * (l + 1) * (l + 2) + (l - 1) * (l + 2) * sigma0)
+    if membrane == "inextensible":
+        return gamma_l(l) + a_l(l) * sigma0
+    raise ConfigError(f"membrane must be 'clean' or 'inextensible', got {membrane!r}")
+
+
+def _y_l0(l, cos_theta):
+    """Real, orthonormal Y_l0 = sqrt((2l+1)/(4 pi)) P_l(cos theta)."""
+    from scipy.special import eval_legendre
+
+    return math.sqrt((2 * l + 1) / (4 * math.pi)) * eval_legendre(l, cos_theta)
+
+
+@dataclass(frozen=True)
+class RateResult:
+    l: int
+    rate: float  # IBM, 1/tau
+    theory: float  # 1/tau
+
+    @property
+    def ratio(self) -> float:
+        return self.rate / self.theory
+
+
+def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3, family="quasiuniform",
+              seed=0, backend="numpy", Lambda=1e5, kernel="peskin4") -> RateResult:
+    """IBM relaxation rate of r = 1 + eps Y_l0 on an N^3 grid of edge L (one Stokes solve, or a tension solve).
+
+    The mesh axis is tilted away from the grid axes (a fixed rotation), so the mode does not line up with
+    the grid. ``sigma0``: a uniform tension added as the force sigma0 H (both membranes).
+    """
+    from . import membrane as B
+    from .mesh import unit_sphere
+    from .simulate import IBMSolver, RunConfig
+
+    check_range("l", l, 2, 200, integer=True)
+    v, f = unit_sphere(family, n_vertices=n_vertices, seed=seed)
+    rot = _rotation()
+    n = v @ rot.T  # mesh directions in the grid frame
+    cos_t = v[:, 2]  # the mode's axis is the mesh's z axis
+    X = n * (1.0 + eps * _y_l0(l, cos_t))[:, None]
+    cfg = RunConfig(chi=0.0, stretch=0.0, N=N, L=L, Lambda=0.0, K_volume=0.0, scheme="projection", backend=backend,
+                    kernel=kernel)
+    solver = IBMSolver(f, X, cfg)
+    xp = solver.xp
+    Xd = xp.asarray(X)
+    F, geo = solver.forces(Xd)
+    if sigma0:
+        F = F + sigma0 * geo.H
+    if membrane == "clean":
+        U = solver.induced_displacement(Xd, F, 1.0, advance=False)
+    elif membrane == "inextensible":
+        from .mobility import IBMMobility
+        from .tension import TensionSolver
+
+        mob = IBMMobility(solver.coupler, solver.stokes)
+        mob.prepare(Xd)
+        ts = TensionSolver(mob, solver.membrane.topo, geo.area.copy(), Lambda, tol=1e-9, maxiter=2000)
+        zero = xp.zeros(geo.area.shape[0])
+        _, U = ts.solve(geo, F, 0.0, zero, 1.0, zero)  # dt = 1: the velocity of the constrained membrane
+    else:
+        raise ConfigError(f"membrane must be 'clean' or 'inextensible', got {membrane!r}")
+    U = solver.be.asnumpy(U)
+    from .tension import dual_areas
+
+    w = solver.be.asnumpy(dual_areas(B.geometry(Xd, solver.membrane.topo), solver.membrane.topo))
+    un = np.einsum("ij,ij->i", U, n)
+    Y = _y_l0(l, cos_t)
+    amp = float(np.sum(w * un * Y) / np.sum(w * Y * Y))
+    return RateResult(int(l), -amp / eps, float(theory_rate(l, membrane, sigma0)))
+
+
+def _rotation():
+    a, b = 0.37, 0.61  # fixed tilt (radians) about x then z
+    rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    rz = np.array([[math.cos(b), -math.sin(b), 0], [math.sin(b), math.cos(b), 0], [0, 0, 1]])
+    return rz @ rx
+
+
+def l_res(ratios: dict, tol=0.05) -> int:
+    """Highest l such that every measured l' <= l has |ratio - 1| <= tol (0 if the first fails)."""
+    best = 0
+    for l in sorted(ratios):
+        if abs(ratios[l] - 1.0) > tol:
+            break
+        best = l
+    return best
+
+
+def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.05, box_factor=None,
+                     kernel="peskin4"):
+    """Rate ratios IBM/theory per (N, l) and l_res per N; ``box_factor[l]`` divides out the periodic-box effect.
+
+    ``n_vertices_of(N)``: the mesh for each grid (default: edge ~ 2h, the project's rule).
+    """
+    out = {}
+    for N in Ns:
+        nv = n_vertices_of(N) if n_vertices_of else default_vertices(N, L)
+        ratios = {}
+        for l in ls:
+            r = mode_rate(l, N, nv, L=L, membrane=membrane, kernel=kernel).ratio
+            ratios[l] = r / (box_factor[l] if box_factor else 1.0)
+        out[N] = {"n_vertices": nv, "ratios": ratios, "l_res": l_res(ratios, tol)}
+    return out
+
+
+def default_vertices(N, L=5.0):
+    """Vertex count whose mean edge is ~2h (h = L/N) on the unit sphere: ~ 4 pi / (0.433 (2h)^2 x 2)."""
+    h = L / N
+    return int(round(4.0 * math.pi / (math.sqrt(3) / 4 * (2 * h) ** 2) / 2.0 + 2))

@@ -1,0 +1,176 @@
+"""Local membrane tension from the linearised local area constraint, solved every time step.
+
+The membrane is locally inextensible: the area of every cell (each triangle by default, or each
+vertex's barycentric dual cell A_i = 1/3 sum_{l in T(i)} A_l) keeps its reference value A^0 up to a
+compliance sigma / Lambda (Lambda: the area-stretch modulus, kappa/R^2). One tension per cell acts
+through the force F_sigma = -D^T sigma, D = dA/dX the gradient of the cell areas: this is eq. (2)-(4),
+E_sigma = int sigma dA, with sigma a field solved for instead of the penalty (A5). Over a step dt with
+the velocity U = M (F - D^T sigma) + u_inf, the linearised area change A + dt D U - A^0 = W sigma / Lambda
+(W = diag(A^0)) gives the symmetric positive definite system
+
+    (dt D M D^T + W / Lambda) sigma = dt D (M F + u_inf) + (A - A^0),
+
+whose right-hand side also corrects the area error left by the previous step, so no drift accumulates.
+The step's velocity comes out of the solve: U = U_0 - sum_k alpha_k M D^T p_k (no extra Stokes solve).
+
+Solver: conjugate gradients, warm-started (the integrator extrapolates the last two tensions), with M
+applied matrix-free (one Stokes solve per iteration) and the compliance W / Lambda as preconditioner.
+Convergence is measured in strain: rms |r| / A^0 <= tol. A solve that does not converge within
+``maxiter`` iterations raises NumericalInstability: never a silent step.
+
+Why only this preconditioner (measured, benchmarks/bench_tension.py; N = 64, 642 vertices, edge ~ 2h,
+Lambda = 1.3e7, dt = 3.7e-5): in the eigenbasis of the surface Laplacian the operator is a band-pass in
+the wavenumber q -- the area rate per unit tension rises like ~0.1 q at small q, peaks near q h ~ 0.5 and
+falls to ~0 at the mesh scale, where the kernel cannot see tension waves; uniform tension moves nothing.
+With the compliance as preconditioner the condition number is ~300. The local-mobility preconditioner
+(self and near-field pair mobility, Kallemov et al. 2016) is indefinite once truncated (smallest
+eigenvalue -0.07 against a self-mobility of 0.51, for cut-offs 1.5-3 h); the best preconditioner that is a
+function of the surface Laplacian alone still leaves a condition number of 145, because the operator
+mixes Laplacian modes strongly. Warm starts make the typical step need a few iterations; the price of a
+step is the count of Stokes solves it takes, reported per run (cg_iterations_*, stokes_solves).
+Prior art: Veerapaneni, Gueyffier, Zorin & Biros, JCP 228 (2009) (a tension solve each step for vesicles).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError, NumericalInstability
+
+CELLS = ("face", "vertex")
+
+
+# --------------------------------------------------------------------------- cells and their area gradient
+def dual_areas(geo, topo):
+    """Barycentric dual-cell areas A_i = 1/3 sum of the adjacent triangle areas, (V,)."""
+    xp = topo.xp
+    return topo.scatter(xp.broadcast_to(geo.area / 3.0, (3, geo.area.shape[0])))
+
+
+def face_mean(sigma, topo):
+    """Triangle value of a vertex field: the mean over its 3 corners, (F,)."""
+    return sigma[topo.fT].mean(axis=0)
+
+
+def vertex_mean(sigma_face, geo, topo):
+    """Area-weighted vertex average of a triangle field, (V,) (for smooth renders and diagnostics)."""
+    xp = topo.xp
+    num = topo.scatter(xp.broadcast_to(sigma_face * geo.area, (3, geo.area.shape[0])))
+    return num / topo.scatter(xp.broadcast_to(geo.area, (3, geo.area.shape[0])))
+
+
+def _face_rates(U, geo, topo):
+    xp = topo.xp
+    Uc = xp.ascontiguousarray(U.T)[:, topo.fT]  # (3, 3, F) velocity at the corners
+    return (geo.grad_area * Uc).sum(axis=(0, 1))  # dA_l/dt per triangle
+
+
+def face_DT(sigma, geo, topo):
+    """D^T sigma (V, 3) = sum_l sigma_l dA_l/dX for triangle cells: minus the tension force."""
+    return topo.scatter(sigma * geo.grad_area).T
+
+
+def face_D(U, geo, topo):
+    """D U (F,) = dA_l/dt for triangle cells and vertex velocities U (V, 3)."""
+    return _face_rates(U, geo, topo)
+
+
+def vertex_DT(sigma, geo, topo):
+    """D^T sigma (V, 3) for dual cells = sum_l sigma_bar_l dA_l/dX, sigma_bar_l the corner mean."""
+    return face_DT(face_mean(sigma, topo), geo, topo)
+
+
+def vertex_D(U, geo, topo):
+    """D U (V,): rate of change of the dual-cell areas."""
+    xp = topo.xp
+    rate = _face_rates(U, geo, topo)
+    return topo.scatter(xp.broadcast_to(rate / 3.0, (3, rate.shape[0])))
+
+
+def cell_areas(geo, topo, cells):
+    return geo.area if cells == "face" else dual_areas(geo, topo)
+
+
+# --------------------------------------------------------------------------- the solve
+@dataclass
+class SolveInfo:
+    iterations: int
+    residual: float  # rms strain of the final residual
+    residual0: float  # rms strain of the warm-start residual
+
+
+class TensionSolver:
+    """PCG for (dt D M D^T + W / Lambda) sigma = rhs with M = ``mobility`` (see the module docstring).
+
+    mobility: an object with ``apply(F) -> U`` at the prepared configuration (IBMMobility);
+    A0: reference cell areas (W); cells: "face" (one tension per triangle) or "vertex" (dual cells).
+    """
+
+    def __init__(self, mobility, topo, A0, Lambda, tol=1e-6, maxiter=200, cells="face"):
+        if cells not in CELLS:
+            raise ConfigError(f"cells must be one of {CELLS}, got {cells!r}")
+        if not Lambda > 0:
+            raise ConfigError(f"Lambda (area-stretch modulus) must be > 0 for the tension solve, got {Lambda!r}")
+        self.mobility = mobility
+        self.topo = topo
+        self.xp = topo.xp
+        self.A0 = A0
+        self.Lambda = float(Lambda)
+        self.tol = float(tol)
+        self.maxiter = int(maxiter)
+        self.cells = cells
+        self.DT, self.D = (face_DT, face_D) if cells == "face" else (vertex_DT, vertex_D)
+        self._pinv = self.Lambda / A0  # the compliance preconditioner W^{-1} Lambda
+        self.last = SolveInfo(0, 0.0, 0.0)
+
+    def operator(self, p, geo, dt):
+        """(A p, M D^T p) for a cell field p; A = dt D M D^T + W / Lambda."""
+        q = self.mobility.apply(self.DT(p, geo, self.topo))
+        return dt * self.D(q, geo, self.topo) + self.A0 * p / self.Lambda, q
+
+    def strain_rms(self, r):
+        xp = self.xp
+        return float(xp.sqrt(xp.mean((r / self.A0) ** 2)))
+
+    def solve(self, geo, F, u_inf, area_error, dt, sigma0):
+        """Tension sigma and velocity U (V, 3) of one step; the mobility must be prepared at geo's positions.
+
+        F: the other Lagrangian forces (bending, volume); u_inf: background velocity at the vertices (or 0);
+        area_error: A - A^0 per cell. Raises NumericalInstability when PCG does not converge.
+        """
+        xp = self.xp
+        sigma = xp.array(sigma0, dtype=xp.float64, copy=True)
+        U = self.mobility.apply(F - self.DT(sigma, geo, self.topo)) + u_inf
+        r = dt * self.D(U, geo, self.topo) + area_error - self.A0 * sigma / self.Lambda
+        res0 = res = self.strain_rms(r)
+        it = 0
+        if res > self.tol:
+            z = self._pinv * r
+            p = z
+            rz = float(xp.sum(r * z))
+            while True:
+                Ap, q = self.operator(p, geo, dt)
+                pAp = float(xp.sum(p * Ap))
+                if not (pAp > 0 and np.isfinite(pAp)):
+                    raise NumericalInstability(f"tension solve: operator not positive along a search direction "
+                                               f"(p.Ap = {pAp:.3g}) at iteration {it}")
+                alpha = rz / pAp
+                sigma += alpha * p
+                U -= alpha * q
+                r -= alpha * Ap
+                it += 1
+                res = self.strain_rms(r)
+                if res <= self.tol:
+                    break
+                if it >= self.maxiter or not np.isfinite(res):
+                    raise NumericalInstability(
+                        f"tension solve did not converge: rms strain residual {res:.3g} > cg_tol {self.tol:g} after "
+                        f"{it} CG iterations (start {res0:.3g}); lower dt or raise cg_maxiter")
+                z = self._pinv * r
+                rz_new = float(xp.sum(r * z))
+                p = z + (rz_new / rz) * p
+                rz = rz_new
+        self.last = SolveInfo(it, res, res0)
+        return sigma, U
