@@ -1,12 +1,20 @@
-"""Explicit stepping vs the projection scheme on the same case: steps, wall time, area accuracy, physics.
+"""The time-stepping schemes on the same case: steps, Stokes solves, wall time, inextensibility, physics.
 
-Run by hand:  python benchmarks/bench_schemes.py [--N 32] [--level 3] [--chi 67] [--t-end 1.0]
+Run by hand:
+    python benchmarks/bench_schemes.py [--N 64] [--n-vertices 642] [--chi 267.8] [--schemes explicit inextensible]
+        [--lambda-explicit 1e7] [--stretch 1] [--t-end 1] [--out DIR]
 
-The explicit scheme holds the area with a stiff penalty (Lambda = 1.5e4 chi); the projection scheme
-holds the total area exactly with a global tension multiplier and a 10x softer local penalty, so its
-stable step is ~10x larger. Both runs go through the same stretch + reversal, and the script reports
-what a user cares about next to the cost: area and volume drift, rms local area strain, the most
-negative tension after the reversal, the peak bending energy and l_* of eq. (31).
+* explicit: the paper's method, the stiff area penalty alone (Lambda = 1.5e4 chi by default; --lambda-explicit
+  sets it, e.g. 1e7 for a strain <= 0.1% at chi = 268);
+* projection: a global tension multiplier holds the total area, 10x softer local penalty;
+* inextensible: a tension per triangle solved every step (PCG), adaptive step.
+
+Reported per scheme: steps, Stokes solves, CG iterations (median / mean / max), wall time, the rms and max area
+strain of triangles and of vertex dual cells over every frame (against the initial mesh), the checkerboard
+measure (rms difference of the vertex-averaged tension between neighbouring vertices over its rms, worst frame in
+0 <= gamma_dot t <= 0.5), and the physics: l_* (eq. 31), l_peak, t_*. The first scheme is the reference of the
+last lines: l_* difference and the rms difference of Delta_2(t) over 0 <= gamma_dot t <= 1, relative to its rms.
+Quote timings with what else ran on the machine.
 """
 
 import os
@@ -25,47 +33,85 @@ from vesicle_core.datasets import spectra_from_trajectory  # noqa: E402
 from vesicle_core.simulate import RunConfig, run  # noqa: E402
 
 
+def inextensibility(ds):
+    """Triangle and dual-cell strain per frame and the checkerboard measure of the tension."""
+    from vesicle_core import membrane as B
+    from vesicle_core.tension import dual_areas, vertex_mean
+
+    X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
+    topo = B.Topology(ds.face_node_connectivity.values, X.shape[1])
+    g0 = B.geometry(X[0], topo)
+    a0, v0 = g0.area, dual_areas(g0, topo)
+    f = topo.faces
+    E = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    rows = []
+    for k in range(X.shape[0]):
+        g = B.geometry(X[k], topo)
+        sf, sv = g.area / a0 - 1, dual_areas(g, topo) / v0 - 1
+        tv = vertex_mean(ds.face_tension.values[k].astype(float), g, topo)
+        rms = np.sqrt(np.mean(tv**2))
+        cb = np.sqrt(np.mean((tv[E[:, 0]] - tv[E[:, 1]]) ** 2)) / rms if rms > 0 else 0.0
+        rows.append((np.sqrt(np.mean(sf**2)), np.abs(sf).max(), np.sqrt(np.mean(sv**2)), np.abs(sv).max(), cb))
+    r = np.array(rows)
+    t = ds.time.values
+    w = (t >= 0) & (t <= 0.5)
+    return {"face_strain_rms": r[:, 0].max(), "face_strain_max": r[:, 1].max(), "vertex_strain_rms": r[:, 2].max(),
+            "vertex_strain_max": r[:, 3].max(), "checkerboard_worst": r[w, 4].max(),
+            "checkerboard_median": float(np.median(r[w, 4]))}
+
+
 def one(scheme, mesh, a, outdir):
-    cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.05, scheme=scheme)
+    kw = {"Lambda": a.lambda_explicit} if scheme == "explicit" and a.lambda_explicit else {}
+    cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
+                    fft_workers=a.fft_workers, **kw)
     t = time.perf_counter()
     path = run(mesh, cfg, outdir, progress=False)
     wall = time.perf_counter() - t
     with xr.open_dataset(path) as ds:
         ds = ds.load()
-    after = ds.sel(time=slice(0.0, None))
-    strain = (ds.face_tension.values - ds.tension.values[:, None]) / ds.attrs["Lambda_eff"]
-    spec = spectra_from_trajectory(ds, l_max=min(40, 4 * 2 ** a.level + 8))
-    return {
-        "scheme": scheme, "steps": int(ds.attrs["steps"]), "dt_tau": ds.attrs["dt_tau"], "wall_s": wall,
-        "ms_per_step": 1e3 * wall / ds.attrs["steps"], "Lambda": ds.attrs["Lambda_eff"],
-        "max_area_drift": float(np.abs(ds.area_drift).max()), "max_volume_drift": float(np.abs(ds.volume_drift).max()),
-        "rms_local_strain": float(np.sqrt(np.mean(strain[1:] ** 2))), "min_tension": float(after.tension.min()),
-        "stretched_tension": float(ds.sel(time=slice(None, 0.0)).tension[-1]),
-        "peak_bending": float(after.bending_energy.max()), "l_star": float(spec.l_star), "t_star": float(spec.t_star),
+    spec = spectra_from_trajectory(ds)
+    row = {
+        "scheme": scheme, "steps": int(ds.attrs["steps"]), "stokes_solves": ds.attrs.get("stokes_solves", np.nan),
+        "cg_median": ds.attrs.get("cg_iterations_median", np.nan), "cg_mean": ds.attrs.get("cg_iterations_mean", np.nan),
+        "cg_max": ds.attrs.get("cg_iterations_max", np.nan), "wall_s": wall, "Lambda": ds.attrs["Lambda_eff"],
+        "max_volume_drift": float(np.abs(ds.volume_drift).max()), **inextensibility(ds),
+        "l_star": float(spec.l_star), "l_peak": float(spec.l_peak), "t_star": float(spec.t_star),
     }
+    return row, spec
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--N", type=int, default=32)
-    ap.add_argument("--level", type=int, default=3)
-    ap.add_argument("--chi", type=float, default=67.0)
+    ap.add_argument("--N", type=int, default=64)
+    ap.add_argument("--n-vertices", type=int, default=642)
+    ap.add_argument("--chi", type=float, default=267.8)
     ap.add_argument("--stretch", type=float, default=1.0)
     ap.add_argument("--t-end", type=float, default=1.0)
+    ap.add_argument("--schemes", nargs="+", default=["explicit", "projection", "inextensible"])
+    ap.add_argument("--lambda-explicit", type=float, default=None)
+    ap.add_argument("--fft-workers", type=int, default=1)
+    ap.add_argument("--out", default=None, help="keep the runs here (default: a temporary directory)")
     a = ap.parse_args()
-    mesh = M.make_vesicle("icosphere", level=a.level, axes=(1.0, 0.8, 1.0))
-    rows = []
+    mesh = M.make_vesicle("quasiuniform", n_vertices=a.n_vertices, axes=(1.0, 0.8, 1.0))
+    rows, specs = [], []
     with tempfile.TemporaryDirectory() as d:
-        for scheme in ("explicit", "projection"):
-            rows.append(one(scheme, mesh, a, os.path.join(d, scheme)))
-    keys = list(rows[0])
-    print(f"N = {a.N}, level {a.level} ({mesh.n_vertices} vertices), chi = {a.chi}, stretch {a.stretch} + {a.t_end} "
-          "gamma_dot t after the reversal")
-    for k in keys:
+        base = a.out or d
+        for scheme in a.schemes:
+            r, s = one(scheme, mesh, a, os.path.join(base, scheme))
+            rows.append(r)
+            specs.append(s)
+            print(f"{scheme}: done in {r['wall_s']:.0f} s", flush=True)
+    print(f"N = {a.N}, {mesh.n_vertices} vertices, chi = {a.chi}, stretch {a.stretch} + {a.t_end} gamma_dot t")
+    for k in rows[0]:
         vals = [r[k] for r in rows]
-        print(f"{k:>18}: " + "  ".join(f"{v:>12.4g}" if not isinstance(v, str) else f"{v:>12}" for v in vals))
-    print(f"{'steps ratio':>18}: {rows[0]['steps'] / rows[1]['steps']:.1f}x fewer with projection; "
-          f"wall ratio {rows[0]['wall_s'] / rows[1]['wall_s']:.1f}x")
+        print(f"{k:>20}: " + "  ".join(f"{v:>12.4g}" if not isinstance(v, str) else f"{v:>12}" for v in vals))
+    ref = specs[0].Delta_l.sel(l=2).sel(time=slice(0.0, 1.0))
+    for r, s in zip(rows[1:], specs[1:], strict=True):
+        d2 = s.Delta_l.sel(l=2).interp(time=ref.time)
+        rel = float(np.sqrt(np.mean((d2 - ref) ** 2)) / np.sqrt(np.mean(ref**2)))
+        print(f"{r['scheme']} vs {rows[0]['scheme']}: l_* {r['l_star'] / rows[0]['l_star'] - 1:+.1%}, "
+              f"Delta_2(t) rms difference {rel:.1%}, steps {rows[0]['steps'] / r['steps']:.1f}x fewer, "
+              f"wall {rows[0]['wall_s'] / r['wall_s']:.1f}x less")
 
 
 if __name__ == "__main__":

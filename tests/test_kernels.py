@@ -42,3 +42,39 @@ def test_stencil_weights_and_periodic_indices():
     d = X[..., None] - xm
     d = (d + L / 2) % L - L / 2  # periodic distance
     assert np.allclose(w, phi(d / h))
+
+
+@pytest.mark.parametrize("kernel, width, sumsq", [("roma3", 3, 0.5), ("peskin4", 4, 3.0 / 8.0), ("bao6", 6, None)])
+def test_every_kernel_partitions_unity_with_zero_first_moment(kernel, width, sumsq):
+    from vesicle_core.kernels import KERNELS, phi_kernel
+
+    assert KERNELS[kernel] == width
+    rng = np.random.default_rng(4)
+    X = rng.uniform(-1.0, 1.0, (200, 3))
+    h, N, origin = 0.1, 32, -1.6
+    idx, w = stencil(X, h, N, origin, kernel=kernel)
+    assert idx.shape == (200, 3, width)
+    s = (X - origin) / h
+    d = ((idx - s[..., None] + N / 2) % N) - N / 2  # signed distance node - point, in h
+    np.testing.assert_allclose(w.sum(-1), 1.0, atol=1e-13)
+    np.testing.assert_allclose((d * w).sum(-1), 0.0, atol=1e-13)
+    assert w.min() >= 0.0
+    sq = (w**2).sum(-1)
+    if sumsq is not None:
+        np.testing.assert_allclose(sq, sumsq, atol=1e-13)
+    else:  # Bao-Kaye-Peskin: constant sum of squares and vanishing second and third moment deviations
+        np.testing.assert_allclose(sq, sq.flat[0], atol=1e-13)
+        np.testing.assert_allclose((d**3 * w).sum(-1), 0.0, atol=1e-12)
+        np.testing.assert_allclose((d**2 * w).sum(-1), (d**2 * w).sum(-1).flat[0], atol=1e-12)
+    # the stencil weights are the kernel evaluated at the node distances
+    np.testing.assert_allclose(w, phi_kernel(d, kernel), atol=1e-13)
+    # and the kernel integrates to one
+    r = np.linspace(-3.5, 3.5, 7001)
+    assert abs(phi_kernel(r, kernel).sum() * (r[1] - r[0]) - 1.0) < 1e-6
+
+
+def test_wider_kernels_smear_modes_more():
+    from vesicle_core.kernels import mode_damping
+
+    d = [mode_damping(10, 0.05, k) for k in ("roma3", "peskin4", "bao6")]
+    assert d[0] > d[1] > d[2]

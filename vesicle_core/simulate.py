@@ -81,7 +81,7 @@ class RunConfig:
     fft_workers: int = 1
     cg_tol: float = 1.0e-6  # inextensible: CG tolerance, rms area strain of the residual
     cg_maxiter: int = 200  # inextensible: CG iterations before the run stops (NumericalInstability)
-    dt_growth: float = 0.1  # inextensible, adaptive dt: e-folds of the fastest PA wrinkle mode per step
+    dt_growth: float = 0.1  # inextensible, adaptive dt: e-folds of the fastest wrinkle per step (flow: /10 strain)
 
     def __post_init__(self):
         check_range("chi", self.chi, 0.0, 1e7)
