@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -74,11 +75,10 @@ def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3
     the grid. ``sigma0``: a uniform tension added as the force sigma0 H (both membranes).
     """
     from . import membrane as B
-    from .mesh import unit_sphere
     from .simulate import IBMSolver, RunConfig
 
     check_range("l", l, 2, 200, integer=True)
-    v, f = unit_sphere(family, n_vertices=n_vertices, seed=seed)
+    v, f = _sphere(family, n_vertices, seed)
     rot = _rotation()
     n = v @ rot.T  # mesh directions in the grid frame
     cos_t = v[:, 2]  # the mode's axis is the mesh's z axis
@@ -112,6 +112,18 @@ def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3
     Y = _y_l0(l, cos_t)
     amp = float(np.sum(w * un * Y) / np.sum(w * Y * Y))
     return RateResult(int(l), -amp / eps, float(theory_rate(l, membrane, sigma0)))
+
+
+@lru_cache(maxsize=8)
+def _sphere(family, n_vertices, seed):
+    """Unit-sphere mesh, cached: a resolution table reuses one mesh for every l (quasi-uniform meshes of
+    10^4 vertices take seconds to build)."""
+    from .mesh import unit_sphere
+
+    v, f = unit_sphere(family, n_vertices=n_vertices, seed=seed)
+    v.setflags(write=False)
+    f.setflags(write=False)
+    return v, f
 
 
 def _rotation():

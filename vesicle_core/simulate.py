@@ -79,7 +79,7 @@ class RunConfig:
     backend: str = "numpy"
     dtype: str = "float64"
     fft_workers: int = 1
-    cg_tol: float = 1.0e-6  # inextensible: CG tolerance, rms area strain of the residual
+    cg_tol: float = 1.0e-5  # inextensible: CG tolerance, rms area strain of the residual (50x below sigma/Lambda)
     cg_maxiter: int = 200  # inextensible: CG iterations before the run stops (NumericalInstability)
     dt_growth: float = 0.1  # inextensible, adaptive dt: e-folds of the fastest wrinkle per step (flow: /10 strain)
 
