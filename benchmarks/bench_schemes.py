@@ -21,16 +21,16 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
+import argparse
+import tempfile
+import time
 
-import numpy as np  # noqa: E402
-import xarray as xr  # noqa: E402
+import numpy as np
+import xarray as xr
 
-from vesicle_core import mesh as M  # noqa: E402
-from vesicle_core.datasets import spectra_from_trajectory  # noqa: E402
-from vesicle_core.simulate import RunConfig, run  # noqa: E402
+from vesicle_core import mesh as M
+from vesicle_core.datasets import spectra_from_trajectory
+from vesicle_core.simulate import RunConfig, run
 
 
 def inextensibility(ds):

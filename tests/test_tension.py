@@ -9,9 +9,24 @@ from vesicle_core import membrane as B
 from vesicle_core import mesh as Mm
 from vesicle_core.errors import NumericalInstability
 from vesicle_core.mobility import IBMMobility
-from vesicle_core.simulate import CHECKPOINT, FAILURE, TRAJECTORY, IBMSolver, RunConfig, run
-from vesicle_core.tension import (TensionSolver, cell_areas, dual_areas, face_D, face_DT, vertex_D, vertex_DT,
-                                  vertex_mean)
+from vesicle_core.simulate import (
+    CHECKPOINT,
+    FAILURE,
+    TRAJECTORY,
+    IBMSolver,
+    RunConfig,
+    run,
+)
+from vesicle_core.tension import (
+    TensionSolver,
+    cell_areas,
+    dual_areas,
+    face_D,
+    face_DT,
+    vertex_D,
+    vertex_DT,
+    vertex_mean,
+)
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +60,7 @@ def test_operator_symmetric_and_positive(setup, cells):
 
 @pytest.mark.parametrize("D, DT, areas", [(face_D, face_DT, lambda g, t: g.area), (vertex_D, vertex_DT, dual_areas)])
 def test_DT_is_the_gradient_of_the_cell_areas(setup, D, DT, areas):
-    m, s, X, _, geo, _ = setup
+    _, s, X, _, geo, _ = setup
     topo = s.membrane.topo
     rng = np.random.default_rng(2)
     sig = rng.standard_normal(areas(geo, topo).shape[0])
@@ -79,14 +94,14 @@ def test_solve_meets_the_linearised_constraint(setup):
 
 
 def test_unconverged_solve_raises(setup):
-    _, s, X, F, geo, mob = setup
+    _, s, _, F, geo, mob = setup
     ts = TensionSolver(mob, s.membrane.topo, geo.area.copy(), 1e7, tol=1e-14, maxiter=2)
     with pytest.raises(NumericalInstability, match="did not converge"):
         ts.solve(geo, F, 0.0, 0 * geo.area, 1e-3, 0 * geo.area)
 
 
 def _run_cfg(**kw):
-    base = dict(chi=50.0, N=16, scheme="inextensible", stretch=0.3, t_end=0.2, output_every=0.05)
+    base = {"chi": 50.0, "N": 16, "scheme": "inextensible", "stretch": 0.3, "t_end": 0.2, "output_every": 0.05}
     return RunConfig(**{**base, **kw})
 
 

@@ -163,4 +163,4 @@ def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.
 def default_vertices(N, L=5.0):
     """Vertex count whose mean edge is ~2h (h = L/N) on the unit sphere: ~ 4 pi / (0.433 (2h)^2 x 2)."""
     h = L / N
-    return int(round(4.0 * math.pi / (math.sqrt(3) / 4 * (2 * h) ** 2) / 2.0 + 2))
+    return round(4.0 * math.pi / (math.sqrt(3) / 4 * (2 * h) ** 2) / 2.0 + 2)

@@ -120,7 +120,7 @@ class RunConfig:
         check_range("cg_maxiter", self.cg_maxiter, 1, 100000, integer=True)
         check_range("dt_growth", self.dt_growth, 0.0, 1.0, lo_open=True)
         if self.scheme == "inextensible" and self.Re > 0:
-            raise ConfigError("scheme 'inextensible' solves steady Stokes (Re = 0); got Re = %g" % self.Re)
+            raise ConfigError(f"scheme 'inextensible' solves steady Stokes (Re = 0); got Re = {self.Re:g}")
         if self.chi == 0 and self.stretch > 0:
             raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
 
@@ -459,10 +459,15 @@ def _shape_moments(X, xp):
 
 
 class _Progress:
-    """tqdm bar on a terminal, plain log lines (every 5%) otherwise."""
+    """tqdm bar on a terminal, plain log lines (every 5%) otherwise.
 
-    def __init__(self, total, initial, enabled):
+    ``unit``: what n counts, "step" (fixed steps) or "permille" (adaptive steps: per mille of the simulated time,
+    the step count then goes in the postfix).
+    """
+
+    def __init__(self, total, initial, enabled, unit="step"):
         self.total, self.n = total, initial
+        self.unit = unit
         self.bar = None
         self.t0 = _time.perf_counter()
         self.n0 = initial
@@ -471,7 +476,8 @@ class _Progress:
         if enabled and sys.stderr.isatty():
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, initial=initial, unit="step", dynamic_ncols=True, smoothing=0.05)
+            self.bar = tqdm(total=total, initial=initial, unit="step" if unit == "step" else "\u2030",
+                            dynamic_ncols=True, smoothing=0.05)
 
     def update(self, n, postfix=None):
         if self.bar is not None:
@@ -485,8 +491,9 @@ class _Progress:
                 el = _time.perf_counter() - self.t0
                 rate = (n - self.n0) / el if el > 0 else 0.0
                 eta = (self.total - n) / rate if rate > 0 else float("nan")
-                print(f"[vesicle run] {pct:3d}%  step {n}/{self.total}  {rate:.1f} steps/s  ETA {eta:.0f} s"
-                      + (f"  {postfix}" if postfix else ""), file=sys.stderr, flush=True)
+                count = f"step {n}/{self.total}  {rate:.1f} steps/s" if self.unit == "step" else ""
+                print(f"[vesicle run] {pct:3d}%  {count}  ETA {eta:.0f} s" + (f"  {postfix}" if postfix else ""),
+                      file=sys.stderr, flush=True)
         self.n = n
 
     def close(self):
@@ -591,7 +598,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
     if adaptive:  # progress in per mille of the simulated time
         total_est = 1000
         done_frac = 0 if state.phase == "stretch" else int(1000 * cfg.stretch / max(cfg.stretch + cfg.t_end, 1e-300))
-        bar = _Progress(total_est, done_frac, progress)
+        bar = _Progress(total_est, done_frac, progress, unit="permille")
     else:
         if state.phase == "relax":
             total_est = int(round(state.t_reverse / dt)) + relax_steps
@@ -667,7 +674,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
                 t_show = cfg.chi * (state.t - state.t_reverse) if state.phase == "relax" else cfg.chi * state.t
                 info = f"{state.phase} gt={t_show:.3f} sigma={sc['tension']:.4g} dA={sc['area_drift']:.1e}"
                 if adaptive:
-                    info += f" dt={dt_step:.2e} cg={sc['cg_iterations']:.0f}"
+                    info = f"step {state.step} {info} dt={dt_step:.2e} cg={sc['cg_iterations']:.0f}"
                     T_all = (cfg.stretch + cfg.t_end) * T
                     t_done = state.t if state.phase == "stretch" else t_stretch_end + state.t - state.t_reverse
                     bar.update(min(1000, int(1000 * t_done / max(T_all, 1e-300))), info)
