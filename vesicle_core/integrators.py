@@ -169,12 +169,17 @@ class Inextensible(Integrator):
         if state.sigma is None:
             state.sigma = xp.zeros(nF)
         self.mobility.prepare(X)
-        # linear extrapolation of the previous two tensions: the warm start of the CG
-        guess = state.sigma if state.sigma_prev is None else 2.0 * state.sigma - state.sigma_prev
+        # warm start of the CG: linear extrapolation in time of the last two tensions (steps vary in length)
+        if state.sigma_prev is None:
+            guess = state.sigma
+        else:
+            h_a, h_b = state.dt_steps
+            guess = state.sigma + (h_b / h_a) * (state.sigma - state.sigma_prev)
         u_inf = background_velocity(X, rate) if cfg.chi > 0 else 0.0
         sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt, guess)
         state.sigma_prev = state.sigma
         state.sigma = sigma
+        state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
         self.iterations.append(self.tension.last.iterations)
         return U * dt
 

@@ -311,6 +311,7 @@ class State:
     sigma: object = None  # per-triangle tension of the inextensible scheme, (F,)
     sigma_prev: object = None  # the one before (warm start by extrapolation)
     next_output_t: float = 0.0  # tau of the next frame (adaptive steps)
+    dt_steps: tuple = ()  # lengths of the last two steps (tau), for the extrapolated warm start
     cg_iterations: list = None  # per step (inextensible)
 
 
@@ -335,6 +336,8 @@ def _save_checkpoint(path: Path, state: State, be, u_hat):
         "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
         "next_output_t": state.next_output_t,
     }
+    if state.dt_steps:  # netCDF attributes cannot be empty
+        attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
     atomic_to_netcdf(xr.Dataset(data, attrs=attrs), path)
 
 
@@ -355,6 +358,7 @@ def _load_checkpoint(path: Path, xp):
         sigma=xp.asarray(ds["sigma"].values) if "sigma" in ds else None,
         sigma_prev=xp.asarray(ds["sigma_prev"].values) if "sigma_prev" in ds else None,
         next_output_t=float(a.get("next_output_t", 0.0)),
+        dt_steps=tuple(np.atleast_1d(a.get("dt_steps", np.zeros(0))).tolist()),
         cg_iterations=[int(v) for v in ds["cg_iterations"].values] if "cg_iterations" in ds else [],
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
