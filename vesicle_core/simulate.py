@@ -732,6 +732,8 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
     wall = _time.perf_counter() - wall0
     extra = {**integ.stats(), "steps": state.step, "wall_time_s_last_call": wall,
              "t_reverse_tau": state.t_reverse, "t_reverse_gamma": state.t_reverse * cfg.chi, "resumed": int(resumed)}
+    if adaptive and state.step > 0:  # the mean step (each frame stores its own in dt_tau)
+        extra.update(dt_tau=state.t / state.step, dt_gamma=cfg.chi * state.t / state.step, dt_bending_tau=dt)
     path = writer.finalize(state.t_reverse, cfg.chi, extra)
     ckpt.unlink(missing_ok=True)
     return path
