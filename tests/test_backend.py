@@ -8,6 +8,20 @@ from vesicle_core.backend import Backend, cupy_available, get_backend
 from vesicle_core.errors import ConfigError
 
 CPU_LIBS = ["scipy"] + (["pyfftw"] if bk._import_pyfftw() is not None else [])
+# "numpy": the FFTs go through xp.fft, the code path of the CuPy backend (numpy.fft on the CPU)
+ALL_CPU_LIBS = CPU_LIBS + ["numpy"]
+
+
+def _dft_rfftn(a, axes):
+    """Unnormalised real-to-complex DFT by explicit matrices exp(-2 pi i j k / n) (independent of any FFT)."""
+    out = a.astype(complex)
+    for ax in axes:
+        n = a.shape[ax]
+        j = np.arange(n)
+        W = np.exp(-2j * np.pi * np.outer(j, j) / n)
+        out = np.moveaxis(np.tensordot(W, np.moveaxis(out, ax, 0), axes=(1, 0)), 0, ax)
+    last = axes[-1]
+    return np.take(out, np.arange(a.shape[last] // 2 + 1), axis=last)
 
 
 def test_numpy_default():
@@ -74,7 +88,7 @@ def test_missing_pyfftw_falls_back_cleanly(monkeypatch):
         get_backend("numpy", fft_library="pyfftw")
 
 
-@pytest.mark.parametrize("lib", CPU_LIBS)
+@pytest.mark.parametrize("lib", ALL_CPU_LIBS)
 @pytest.mark.parametrize("workers", [1, 2])
 def test_fft_matches_numpy(lib, workers):
     be = get_backend(fft_library=lib, fft_workers=workers)
@@ -92,7 +106,7 @@ def test_fft_matches_numpy(lib, workers):
     np.testing.assert_allclose(unscaled, a * (8 * 10 * 12), atol=1e-10)
 
 
-@pytest.mark.parametrize("lib", CPU_LIBS)
+@pytest.mark.parametrize("lib", ALL_CPU_LIBS)
 def test_fft_out_and_overwrite(lib):
     be = get_backend(fft_library=lib)
     rng = np.random.default_rng(2)
@@ -163,7 +177,7 @@ def test_cupy_backend_roundtrip():
     np.testing.assert_array_equal(be.asnumpy(out)[:3], [0.0, 3.0, 3.0])
 
 
-@pytest.mark.parametrize("lib", CPU_LIBS)
+@pytest.mark.parametrize("lib", ALL_CPU_LIBS)
 def test_plan_reuse_never_writes_into_earlier_arrays(lib):
     """pyFFTW's __call__ would copy unaligned input into the array bound by an earlier call;
     the backend must never touch a caller's array other than ``out``."""
@@ -180,9 +194,43 @@ def test_plan_reuse_never_writes_into_earlier_arrays(lib):
     np.testing.assert_allclose(B, np.fft.rfftn(raw, axes=(1, 2, 3)), atol=1e-12)
 
 
-def test_float32_stays_single_precision_with_scipy_fft():
-    be = get_backend(dtype="float32", fft_library="scipy")
+@pytest.mark.parametrize("lib", ["scipy", "numpy"])
+def test_float32_stays_single_precision_without_fftw(lib):
+    be = get_backend(dtype="float32", fft_library=lib)
     a = np.random.default_rng(1).standard_normal((3, 8, 8, 8))  # float64 input
     A = be.rfftn(a, (1, 2, 3))
     assert A.dtype == np.complex64
     assert np.allclose(be.irfftn(A, (8, 8, 8), (1, 2, 3)), a, atol=1e-5)
+
+
+# ------------------------------------------------------------------ the GPU FFT path (xp.fft) on the CPU
+def test_xp_fft_path_is_opt_in():
+    assert not get_backend().uses_xp_fft  # 'auto' never picks numpy.fft
+    be = get_backend(fft_library="numpy")
+    assert be.name == "numpy" and be.fft_library == "numpy" and be.uses_xp_fft and not be.is_gpu
+
+
+@pytest.mark.parametrize("lib", ALL_CPU_LIBS)
+def test_fft_matches_explicit_dft(lib):
+    be = get_backend(fft_library=lib)
+    a = np.random.default_rng(5).standard_normal((3, 4, 6, 8))
+    ref = _dft_rfftn(a, (1, 2, 3))
+    A = be.rfftn(a, (1, 2, 3))
+    assert np.abs(A - ref).max() < 1e-12 * np.abs(ref).max()
+    back = be.irfftn(A.copy(), (4, 6, 8), (1, 2, 3), norm="forward")
+    np.testing.assert_allclose(back, a * (4 * 6 * 8), rtol=0, atol=1e-12 * 4 * 6 * 8)
+
+
+def test_gpu_named_backend_takes_the_xp_fft_branch():
+    """With name 'cupy' (is_gpu) the FFTs take the xp.fft branch whatever fft_library says; holding NumPy as
+    xp, that branch runs here exactly as on a GPU, and must give the DFT."""
+    import dataclasses
+
+    fake = dataclasses.replace(get_backend(fft_library="scipy"), name="cupy")
+    assert fake.is_gpu and fake.uses_xp_fft
+    a = np.random.default_rng(6).standard_normal((3, 4, 6, 8))
+    ref = _dft_rfftn(a, (1, 2, 3))
+    out = fake.empty((3, 4, 6, 5), fake.complex_dtype)
+    assert fake.rfftn(a, (1, 2, 3), out=out) is out
+    assert np.abs(out - ref).max() < 1e-12 * np.abs(ref).max()
+    np.testing.assert_allclose(fake.irfftn(out, (4, 6, 8), (1, 2, 3)), a, rtol=0, atol=1e-13)

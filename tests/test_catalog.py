@@ -2,6 +2,7 @@
 theory.py, built here so the catalog is tested on its own)."""
 
 import argparse
+import ast
 import csv
 import json
 import math
@@ -15,8 +16,10 @@ from vesicle_core.units import chi_from_S
 
 
 # --------------------------------------------------------------------------- synthetic datasets
-def synthetic_spectra(delta, S, n_time=21, t0=-0.4, t1=1.0, l_max=12, kind="spectra", N=32, level=3, seed=0):
-    """A small dataset with the layout of spectra.nc (kind="spectra") or theory.nc (kind="theory")."""
+def synthetic_spectra(delta, S, n_time=21, t0=-0.4, t1=1.0, l_max=12, kind="spectra", N=32, level=3, seed=0,
+                      run_attrs=None):
+    """A small dataset with the layout of spectra.nc (kind="spectra") or theory.nc (kind="theory"). Without
+    ``run_attrs`` the attributes are those of an old file (no n_vertices, scheme, dtype or kernel)."""
     rng = np.random.default_rng(seed)
     t = np.linspace(t0, t1, n_time)
     l = np.arange(l_max + 1)
@@ -55,18 +58,23 @@ def synthetic_spectra(delta, S, n_time=21, t0=-0.4, t1=1.0, l_max=12, kind="spec
     if kind == "spectra":
         attrs.update(N=N, mesh_level=level, mesh_family="icosphere", backend="numpy", mesh_delta=delta + 1e-13,
                      mesh_target_delta=delta)
+        attrs.update(run_attrs or {})
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
-def write_sweep(root, points, *, N=32, level=3, theory=True):
+def write_sweep(root, points, *, N=32, level=3, theory=True, family="icosphere", n_vertices=None, tag=None,
+                run_attrs=None):
     """Write results/runs/<id>/spectra.nc (+ theory/<id>.nc, a mesh and a fit-like file) under ``root``;
     returns the written paths."""
     paths = []
     for i, (delta, S, n_time) in enumerate(points):
-        cid = C.case_id(delta, S=S, N=N, level=level)
+        cid = C.case_id(delta, S=S, N=N, family=family, level=level, n_vertices=n_vertices, tag=tag)
         p = root / "runs" / cid / "spectra.nc"
         p.parent.mkdir(parents=True, exist_ok=True)
-        synthetic_spectra(delta, S, n_time=n_time, N=N, level=level, seed=i).to_netcdf(p)
+        extra = dict(run_attrs or {})
+        if family != "icosphere":
+            extra.update(mesh_family=family, mesh_level=-1)
+        synthetic_spectra(delta, S, n_time=n_time, N=N, level=level, seed=i, run_attrs=extra).to_netcdf(p)
         paths.append(p)
         if theory:
             tp = root / "theory" / f"{C.theory_id(delta, S)}.nc"
@@ -217,3 +225,219 @@ def test_catalog_command(tmp_path, capsys):
     assert "6 datasets" in capsys.readouterr().out
     assert (root / "catalog.json").is_file()
     assert C.open_sweep(root / "catalog.csv").sizes["S"] == 2
+
+
+# --------------------------------------------------------------------------- mesh and run columns
+NEW_COLUMNS = ("n_vertices", "mesh_family", "scheme", "dtype", "kernel", "tag")
+
+
+def _csv_table(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def real_runs(tmp_path_factory):
+    """Two tiny IBM runs at the same nominal (Delta, S) and grid N = 16 that differ in mesh (icosphere L1, 42
+    vertices / quasi-uniform, 162 vertices), scheme, kernel and dtype, the second tagged; their meshes,
+    trajectories and spectra are written the way the workflow lays them out (about 2 s)."""
+    from vesicle_core import datasets as D
+    from vesicle_core import mesh as M
+    from vesicle_core.simulate import RunConfig, run
+
+    root = tmp_path_factory.mktemp("real") / "results"
+    delta, S = 0.17, 100.0
+    cases = {
+        "A": {"mesh": M.make_vesicle("icosphere", level=1), "id_kw": {"level": 1},
+              "cfg": {"scheme": "projection", "kernel": "peskin4", "dtype": "float64"}},
+        "B": {"mesh": M.make_vesicle("quasiuniform", n_vertices=162),
+              "id_kw": {"family": "quasiuniform", "n_vertices": 162, "tag": "alt"},
+              "cfg": {"scheme": "explicit", "kernel": "roma3", "dtype": "float32"}},
+    }
+    paths = []
+    for c in cases.values():
+        m = c["mesh"]
+        c["id"] = C.case_id(delta, S=S, N=16, **c["id_kw"])
+        mp = root / "meshes" / f"{C.mesh_id(delta, m.attrs['family'], max(m.attrs['level'], 0), m.n_vertices)}.nc"
+        mp.parent.mkdir(parents=True, exist_ok=True)
+        M.save(m, mp)
+        cfg = RunConfig(chi=20.0, N=16, stretch=0.05, t_end=0.05, output_every=0.05, Lambda=2e4, K_volume=1e6,
+                        **c["cfg"])
+        traj = run(m, cfg, root / "runs" / c["id"], progress=False)
+        with xr.open_dataset(traj) as ds:
+            spec = D.spectra_from_trajectory(ds.load(), command="pytest")
+        sp = traj.parent / "spectra.nc"
+        spec.to_netcdf(sp)
+        c["paths"] = {"mesh": mp, "trajectory": traj, "spectra": sp}
+        paths += [mp, traj, sp]
+    C.write_catalog(paths, root / "catalog.csv")
+    return root, cases
+
+
+def test_catalog_columns_of_real_runs(real_runs):
+    root, cases = real_runs
+    table = _csv_table(root / "catalog.csv")
+    assert set(NEW_COLUMNS) <= set(table[0])
+    by_path = {r["path"]: r for r in table}
+    assert len(table) == 6
+    for c in cases.values():
+        m = c["mesh"]
+        for kind, p in c["paths"].items():
+            r = by_path[str(p.relative_to(root))]
+            assert r["kind"] == kind
+            assert r["n_vertices"] == str(m.n_vertices)
+            assert r["mesh_family"] == m.attrs["family"]
+            if kind == "mesh":
+                assert r["scheme"] == r["dtype"] == r["kernel"] == r["tag"] == ""
+                continue
+            assert (r["scheme"], r["kernel"], r["dtype"]) == (c["cfg"]["scheme"], c["cfg"]["kernel"],
+                                                                c["cfg"]["dtype"])
+            assert r["tag"] == c["id_kw"].get("tag", "") and r["case_id"] == c["id"] and r["N"] == "16"
+            with xr.open_dataset(p) as ds:
+                assert set(ast.literal_eval(r["variables"])) == set(ds.data_vars)  # a list literal
+    assert {by_path[str(c["paths"]["mesh"].relative_to(root))]["n_vertices"] for c in cases.values()} == {"42", "162"}
+
+
+def test_open_sweep_selects_by_mesh_and_run_columns(real_runs):
+    root, cases = real_runs
+    A, B = cases["A"], cases["B"]
+    with pytest.raises(C.CatalogError, match="two spectra datasets") as exc:
+        C.open_sweep(root / "catalog.csv")
+    for c in ("n_vertices=...", "mesh_family=...", "scheme=...", "dtype=...", "kernel=...", "tag=..."):
+        assert c in str(exc.value)  # the error names the columns that tell the two apart
+    expect = {  # selector -> case it must pick
+        "n_vertices=42": ({"n_vertices": 42}, A), "n_vertices='162'": ({"n_vertices": "162"}, B),
+        "n_vertices=162.0": ({"n_vertices": 162.0}, B), "mesh_family": ({"mesh_family": "icosphere"}, A),
+        "scheme": ({"scheme": "explicit"}, B), "kernel": ({"kernel": "peskin4"}, A),
+        "dtype": ({"dtype": "float32"}, B), "tag": ({"tag": "alt"}, B), "untagged": ({"tag": ""}, A),
+        "untagged None": ({"tag": None}, A), "N and n_vertices": ({"N": 16, "n_vertices": 42}, A),
+        "list": ({"scheme": ["inextensible", "projection"]}, A),
+    }
+    for name, (where, case) in expect.items():
+        ds = C.open_sweep(root / "catalog.csv", **where)
+        assert str(ds.case_id.item()) == case["id"], name
+        with xr.open_dataset(case["paths"]["spectra"]) as ref:  # the right file was opened
+            assert float(ds.l_star.item()) == float(ref.l_star)
+        assert float(ds.n_vertices.item()) == case["mesh"].n_vertices
+        assert str(ds.scheme.item()) == case["cfg"]["scheme"] and str(ds.kernel.item()) == case["cfg"]["kernel"]
+    with pytest.raises(C.CatalogError, match="no spectra datasets"):
+        C.open_sweep(root / "catalog.csv", n_vertices=642)
+    with pytest.raises(C.CatalogError, match="no spectra datasets"):
+        C.open_sweep(root / "catalog.csv", scheme="explicit", kernel="peskin4")
+
+
+def test_old_files_and_missing_attributes(tmp_path):
+    """Spectra without run/mesh attributes (older files): kernel defaults to peskin4, the vertex count of an
+    icosphere follows from its level, everything unknown is an empty cell."""
+    root = tmp_path / "results"
+    paths = write_sweep(root, [(0.116, 553.0, 21)], N=64, level=3, theory=False)  # no run attrs at all
+    paths += [p for p in write_sweep(root, [(0.116, 553.0, 21)], N=64, family="quasiuniform", n_vertices=2562,
+                                     tag="q", theory=False, run_attrs={"scheme": "projection", "dtype": "float64",
+                                                                        "kernel": "bao6"}) if p.name == "spectra.nc"]
+    bare = root / "runs" / "D0.5_S10" / "spectra.nc"  # an id without grid or mesh, a dataset without attributes
+    bare.parent.mkdir(parents=True)
+    ds = synthetic_spectra(0.5, 10.0)
+    ds.attrs = {}
+    ds.to_netcdf(bare)
+    C.write_catalog(sorted(set(paths)) + [bare], root / "catalog.csv")
+    rows = {r["case_id"]: r for r in _csv_table(root / "catalog.csv")}
+    old = rows["D0.116_S553_N64_L3"]
+    assert (old["n_vertices"], old["mesh_family"], old["scheme"], old["dtype"], old["kernel"], old["tag"]) == (
+        "642", "icosphere", "", "", "peskin4", "")
+    q = rows["D0.116_S553_N64_Q2562_q"]
+    assert (q["n_vertices"], q["mesh_family"], q["mesh_level"], q["scheme"], q["kernel"], q["tag"]) == (
+        "2562", "quasiuniform", "", "projection", "bao6", "q")
+    b = rows["D0.5_S10"]
+    assert (b["N"], b["n_vertices"], b["mesh_family"], b["mesh_level"], b["scheme"], b["dtype"], b["tag"]) == (
+        "", "", "", "", "", "", "")
+    assert b["kernel"] == "peskin4" and b["S"] == "10"
+    fit = next(r for r in rows.values() if r["kind"] == "fit")
+    assert all(fit[c] == "" for c in NEW_COLUMNS)
+    # the two N = 64 cases that differ only in the mesh are told apart
+    assert str(C.open_sweep(root, N=64, n_vertices=642).case_id.item()) == "D0.116_S553_N64_L3"
+    assert str(C.open_sweep(root, N=64, n_vertices="2562").case_id.item()) == "D0.116_S553_N64_Q2562_q"
+    assert str(C.open_sweep(root, N=64, scheme="projection").case_id.item()) == "D0.116_S553_N64_Q2562_q"
+    assert str(C.open_sweep(root, N=None).case_id.item()) == "D0.5_S10"  # None selects empty cells
+
+
+def test_selector_errors_name_the_columns(tmp_path):
+    root = tmp_path / "results"
+    C.write_catalog(write_sweep(root, [(0.116, 553.0, 21)], theory=False), root / "catalog.csv")
+    with pytest.raises(C.CatalogError) as exc:
+        C.open_sweep(root / "catalog.csv", n_vertex=642)
+    msg = str(exc.value)
+    assert "'n_vertex'" in msg and all(c in msg for c in C.COLUMNS)
+    with pytest.raises(ValueError, match="numeric column"):  # CatalogError is a ValueError
+        C.open_sweep(root / "catalog.csv", n_vertices="many")
+    # a catalog written before these columns existed: selecting by one says to rebuild it
+    table = _csv_table(root / "catalog.csv")
+    keep = [c for c in table[0] if c not in NEW_COLUMNS + ("variables",)]
+    with open(root / "old.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, keep, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(table)
+    assert str(C.open_sweep(root / "old.csv", N=32).case_id.item()) == "D0.116_S553_N32_L3"
+    with pytest.raises(C.CatalogError, match="rebuild the catalog") as exc:
+        C.open_sweep(root / "old.csv", n_vertices=642)
+    assert "n_vertices" in str(exc.value) and "'scheme'" not in str(exc.value)
+
+
+def _rows():
+    """Rows as read_catalog returns them (integers or None, NaN for empty floats, "" for empty text)."""
+    table = [("a", 64, 642, "projection", "", 553.0), ("b", 64, 2562, "explicit", "fine", 553.0),
+             ("c", 32, 642, "projection", "fine", 1106.5), ("d", None, None, "", "", math.nan)]
+    return [{"case_id": cid, "N": N, "n_vertices": nv, "scheme": scheme, "tag": tag, "S": S,
+             "variables": ("l_star", "sigma")} for cid, N, nv, scheme, tag, S in table]
+
+
+@pytest.mark.parametrize("use_pandas", [True, False])
+@pytest.mark.parametrize("where, expect", [
+    ({}, "abcd"),
+    ({"N": 64}, "ab"),
+    ({"N": "64", "n_vertices": "642"}, "a"),
+    ({"n_vertices": np.int64(642)}, "ac"),
+    ({"S": 553.0000000001}, "ab"),  # floats to 1e-9 relative
+    ({"S": 553.1}, ""),
+    ({"scheme": "projection"}, "ac"),
+    ({"scheme": ["explicit", ""]}, "bd"),
+    ({"tag": ""}, "ad"),
+    ({"N": None}, "d"),
+    ({"variables": "sigma"}, "abcd"),
+    ({"variables": "u_real"}, ""),
+])
+def test_select_rows_with_and_without_pandas(monkeypatch, use_pandas, where, expect):
+    if not use_pandas:
+        monkeypatch.setattr(C, "_pandas", lambda: None)
+    else:
+        assert C._pandas() is not None
+    columns = ["case_id", "N", "n_vertices", "scheme", "tag", "S", "variables"]
+    got = C.select_rows(_rows(), columns, where)
+    assert "".join(r["case_id"] for r in got) == expect
+
+
+# --------------------------------------------------------------------------- intake-esm
+def test_catalog_json_opens_with_intake_esm(tmp_path, monkeypatch):
+    """The JSON is an ESM collection intake-esm can open, search and load (optional dependency)."""
+    pytest.importorskip("intake_esm")
+    import intake
+
+    root = tmp_path / "results"
+    paths = write_sweep(root, [(0.116, 553.0, 21), (0.116, 1106.5, 31)])
+    paths += [p for p in write_sweep(root, [(0.116, 553.0, 11)], N=64, theory=False) if p.name == "spectra.nc"]
+    C.write_catalog(sorted(set(paths)), root / "catalog.csv")
+    monkeypatch.chdir(tmp_path)  # not the catalog's directory: catalog_file must resolve next to the JSON
+    cat = intake.open_esm_datastore(str(root / "catalog.json"))
+    assert len(cat.df) == 7 and list(cat.df.columns) == list(C.COLUMNS)
+    keys = set(cat.keys())
+    assert {"spectra.D0.116_S553_N32_L3", "spectra.D0.116_S553_N64_L3", "theory.D0.116_S553", "fit.lstar_vs_S",
+            "mesh.icosphere_L3_D0.116"} <= keys and len(keys) == 7
+    # intake-esm reads the columns as text
+    assert list(cat.search(kind="spectra", N="64").df["case_id"]) == ["D0.116_S553_N64_L3"]
+    assert len(cat.search(kind="spectra", S="553").df) == 2
+    assert set(cat.search(variables=".*'Delta_tilde_l'.*").df["kind"]) == {"spectra"}
+    # asset paths are relative to the catalog; intake-esm opens them from the working directory
+    monkeypatch.chdir(root)
+    dsets = cat.search(kind="spectra", N="64").to_dataset_dict(progressbar=False)
+    ds = dsets["spectra.D0.116_S553_N64_L3"]
+    with xr.open_dataset(root / "runs" / "D0.116_S553_N64_L3" / "spectra.nc") as ref:
+        np.testing.assert_array_equal(ds["Delta_l"].values, ref["Delta_l"].values)

@@ -14,6 +14,15 @@ def be():
     return get_backend("numpy")
 
 
+@pytest.fixture(scope="module", params=["cpu-layout", "gpu-layout"])
+def layout(request):
+    """(backend, interleave) of the two code paths: the CPU default, and the path a CuPy backend takes
+    (complex single-chunk spectral layout, FFTs through ``xp.fft``) run on NumPy arrays."""
+    if request.param == "cpu-layout":
+        return get_backend("numpy"), None
+    return get_backend("numpy", fft_library="numpy"), False
+
+
 def _mesh(g):
     x = g.axis_coords()
     return np.meshgrid(x, x, x, indexing="ij")
@@ -88,8 +97,9 @@ def test_longitudinal_single_mode_is_pure_pressure(be):
     assert np.abs(u).max() < 1e-14
 
 
-def test_oblique_mode_against_symbol_formula(be):
+def test_oblique_mode_against_symbol_formula(layout):
     """f = e cos(2 pi (k1 x + k2 y + k3 z) / L): u = xi_k e / lam_k cos(...), xi_k from g_k."""
+    be, interleave = layout
     g = Grid(16, 2.0)
     N, h = g.N, g.h
     xx, yy, zz = _mesh(g)
@@ -101,16 +111,17 @@ def test_oblique_mode_against_symbol_formula(be):
     lam = _lam1(kv, N, h).sum()
     xi = np.eye(3) - np.outer(gk, gk) / (gk @ gk)
     amp = xi @ e / lam
-    u = StokesSolver(g, be).velocity(f)
+    u = StokesSolver(g, be, interleave=interleave).velocity(f)
     expected = amp[:, None, None, None] * np.cos(phase)
     np.testing.assert_allclose(u, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
 
 
-def test_special_modes(be):
+def test_special_modes(layout):
     """k = 0 is removed; modes with g_k = 0, k != 0 (k_j in {0, N/2}) see the identity projector."""
+    be, interleave = layout
     g = Grid(8, 2.0)
     N, h = g.N, g.h
-    s = StokesSolver(g, be)
+    s = StokesSolver(g, be, interleave=interleave)
     f = np.ones(g.field_shape)  # uniform force: k = 0 only
     assert np.abs(s.velocity(f)).max() == 0.0
     m = np.arange(N)
@@ -125,16 +136,9 @@ def test_special_modes(be):
     np.testing.assert_allclose(u[2], f[2] / (12.0 / h**2), atol=1e-15)
 
 
-def test_random_force_is_divergence_free_and_matches_dense_formula(be):
-    g = Grid(16, 2.5)
-    N, h = g.N, g.h
-    rng = np.random.default_rng(0)
-    f = rng.standard_normal(g.field_shape)
-    u = StokesSolver(g, be).velocity(f)
-    div = _div(u, h)
-    rel = np.abs(div).max() / (np.abs(u).max() / h)
-    assert rel < 1e-12, rel  # measured ~4e-16
-    # independent dense evaluation of u_hat = xi f_hat / lam with full complex FFTs
+def _dense_steady(f, N, h):
+    """Independent dense evaluation of u_hat = xi f_hat / lam with full complex FFTs (no symbol caches,
+    no half spectrum, no in-place slabs)."""
     fh = np.fft.fftn(f, axes=(1, 2, 3))
     k = np.fft.fftfreq(N, 1.0 / N)
     K = np.meshgrid(k, k, k, indexing="ij")
@@ -146,7 +150,20 @@ def test_random_force_is_divergence_free_and_matches_dense_formula(be):
     with np.errstate(divide="ignore", invalid="ignore"):
         uh = (fh - G * np.where(g2 > 0, gdf / g2, 0.0)) / lam
     uh[:, 0, 0, 0] = 0.0
-    ref = np.fft.ifftn(uh, axes=(1, 2, 3)).real
+    return np.fft.ifftn(uh, axes=(1, 2, 3)).real
+
+
+def test_random_force_is_divergence_free_and_matches_dense_formula(layout):
+    be, interleave = layout
+    g = Grid(16, 2.5)
+    N, h = g.N, g.h
+    rng = np.random.default_rng(0)
+    f = rng.standard_normal(g.field_shape)
+    u = StokesSolver(g, be, interleave=interleave).velocity(f)
+    div = _div(u, h)
+    rel = np.abs(div).max() / (np.abs(u).max() / h)
+    assert rel < 1e-12, rel  # measured ~4e-16
+    ref = _dense_steady(f, N, h)
     np.testing.assert_allclose(u, ref, rtol=0, atol=1e-13 * np.abs(ref).max())
 
 
@@ -168,8 +185,9 @@ def test_out_buffer_and_shape_checks(be):
 
 # ------------------------------------------------------------------ finite density, eq. (23), (29)
 @pytest.mark.parametrize("rho, dt", [(1.0, 1e-9), (1.0, 1e-3), (1e-2, 1e-2), (1e-6, 1e-2), (1e-9, 1.0)])
-def test_exponential_update_matches_single_mode_ode(be, rho, dt):
+def test_exponential_update_matches_single_mode_ode(layout, rho, dt):
     """rho du/dt = -lam u + f (transverse mode, constant f): exact u(t) and Gamma = int u dt."""
+    be, interleave = layout
     g = Grid(8, 2.0)
     k = 1
     xx, _, _ = _mesh(g)
@@ -179,7 +197,7 @@ def test_exponential_update_matches_single_mode_ode(be, rho, dt):
     f[2] = f0 * shape
     lam = _lam1(k, g.N, g.h)
     a = lam / rho
-    s = StokesSolver(g, be, rho_bar=rho)
+    s = StokesSolver(g, be, rho_bar=rho, interleave=interleave)
     t = 0.0
     amp_inf = f0 / lam
     for n in range(4):
@@ -245,6 +263,92 @@ def test_float32_solver_close_to_float64():
     G32 = StokesSolver(g, be32, rho_bar=1e-3).step(f.astype(np.float32), 1e-2)
     G64 = StokesSolver(g, get_backend(), rho_bar=1e-3).step(f, 1e-2)
     assert np.abs(G32 - G64).max() / np.abs(G64).max() < 1e-5
+
+
+# ------------------------------------------------------------------ GPU spectral layout on the CPU
+# A CuPy backend makes the solver act on the complex spectrum in one chunk (interleave=False) and run its FFTs
+# through xp.fft; both are forced here on NumPy. N = 64 so that the CPU layout really splits the spectrum into
+# slabs (chunk 31 of 64 in float64) while the GPU layout takes it whole.
+def _rel(a, b):
+    return float(np.abs(a - b).max() / np.abs(b).max())
+
+
+def _gpu_backend(dtype="float64"):
+    return get_backend("numpy", dtype=dtype, fft_library="numpy")
+
+
+def test_interleave_flag_selects_the_layout(be):
+    import dataclasses
+
+    g = Grid(64, 5.0)
+    cpu = StokesSolver(g, be)
+    assert cpu.interleaved and StokesSolver(g, be, interleave=True).interleaved
+    assert cpu._chunk < g.N and cpu._tmp[0].dtype == np.float64 and cpu._gy.shape == (64, 66)
+    gpu = StokesSolver(g, be, interleave=False)
+    assert not gpu.interleaved
+    assert gpu._chunk == g.N and gpu._tmp[0].dtype == np.complex128 and gpu._gy.shape == (64, 33)
+    # the automatic choice follows backend.is_gpu: a backend named 'cupy' (here holding NumPy, FFTs by xp.fft)
+    fake_gpu = dataclasses.replace(_gpu_backend(), name="cupy")
+    assert fake_gpu.is_gpu and not StokesSolver(g, fake_gpu).interleaved
+    assert StokesSolver(g, fake_gpu, interleave=True).interleaved
+    with pytest.raises(ConfigError, match="interleave"):
+        StokesSolver(g, be, interleave="no")
+
+
+@pytest.mark.parametrize("fft", ["same-fft", "xp-fft"])
+def test_gpu_layout_steady_matches_default(be, fft):
+    g = Grid(64, 5.0)
+    f = np.random.default_rng(7).standard_normal(g.field_shape)
+    default = StokesSolver(g, be)
+    gpu = StokesSolver(g, be if fft == "same-fft" else _gpu_backend(), interleave=False)
+    u_ref = default.velocity(f)
+    u = gpu.velocity(f)
+    assert _rel(u, u_ref) < 1e-12
+    # and both against the independent dense formula (a shared mistake in the symbols would show here)
+    assert _rel(u, _dense_steady(f, g.N, g.h)) < 1e-12
+    # the steady step folds dt into the symbols (another cached symbol pair) and writes into out=
+    out = np.empty(g.field_shape)
+    assert gpu.step(f, 0.37, out=out) is out
+    assert _rel(out, 0.37 * u_ref) < 1e-12
+
+
+def test_gpu_layout_float32_matches_default():
+    g = Grid(64, 5.0)
+    f = np.random.default_rng(8).standard_normal(g.field_shape).astype(np.float32)
+    be32 = get_backend(dtype="float32")
+    u_ref = StokesSolver(g, be32).velocity(f)
+    gpu = StokesSolver(g, be32, interleave=False)
+    assert gpu._tmp[0].dtype == np.complex64
+    u = gpu.velocity(f)
+    assert u.dtype == np.float32
+    # same FFT, same float32 operations per mode: agreement to a few float32 ulps (eps = 1.2e-7)
+    assert _rel(u, u_ref) < 2e-6
+    u_xp = StokesSolver(g, get_backend(dtype="float32", fft_library="numpy"), interleave=False).velocity(f)
+    assert u_xp.dtype == np.float32 and _rel(u_xp, u_ref) < 2e-6
+
+
+@pytest.mark.parametrize("rho", [1e-3, 1.0])
+@pytest.mark.parametrize("fft", ["same-fft", "xp-fft"])
+def test_gpu_layout_finite_density_matches_default(be, rho, fft):
+    """Exponential update (23)/(29) over several steps (dt changes once, so the per-dt symbols are rebuilt):
+    Gamma, the stored u_hat and the velocity field agree between the layouts, and a state written by one
+    layout continues identically in the other."""
+    g = Grid(64, 5.0)
+    rng = np.random.default_rng(9)
+    default = StokesSolver(g, be, rho_bar=rho)
+    gpu = StokesSolver(g, be if fft == "same-fft" else _gpu_backend(), rho_bar=rho, interleave=False)
+    for dt in (1e-3, 1e-3, 2.5e-3):
+        f = rng.standard_normal(g.field_shape)
+        G_ref = default.step(f, dt)
+        G = gpu.step(f, dt)
+        assert _rel(G, G_ref) < 1e-12
+        assert _rel(gpu.state["u_hat"], default.state["u_hat"]) < 1e-12
+        assert _rel(gpu.velocity_field(), default.velocity_field()) < 1e-12
+    # u_hat has the same meaning in both layouts: hand the GPU-layout state to a CPU-layout solver
+    other = StokesSolver(g, be, rho_bar=rho)
+    other.state = gpu.state
+    f = rng.standard_normal(g.field_shape)
+    assert _rel(other.step(f, 1e-3), gpu.step(f, 1e-3)) < 1e-12
 
 
 # ------------------------------------------------------------------ regularised Stokeslet

@@ -15,6 +15,10 @@ the library behind those two operations:
   costs ~2.2 ms because it builds and adds a full-size temporary. ``bincount`` is offered for the
   case of a *fresh* output (:meth:`Backend.bincount`).
 * GPU: ``cupy.fft`` and ``cupyx.scatter_add``. CuPy is imported lazily, only in this module.
+* ``fft_library='numpy'`` (CPU, testing only): the FFTs go through the array module's own ``xp.fft``,
+  the code path the CuPy backend takes (``cupy.fft`` mirrors ``numpy.fft``), so that branch runs and is
+  tested without a GPU. ``numpy.fft`` is single-threaded and slower than pyFFTW/scipy; ``auto`` never
+  picks it.
 
 Normalisation. ``rfftn`` is the unnormalised forward transform (sum over nodes). ``irfftn`` scales
 by 1/prod(s) by default (``norm='backward'``, as NumPy); ``norm='forward'`` skips the scaling so a
@@ -37,7 +41,7 @@ from .errors import ConfigError
 
 BACKEND_NAMES = ("numpy", "cupy", "auto")
 DTYPES = ("float64", "float32")
-FFT_LIBRARIES = ("auto", "pyfftw", "scipy")
+FFT_LIBRARIES = ("auto", "pyfftw", "scipy", "numpy")
 FFTW_PLANNERS = ("auto", "FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT", "FFTW_EXHAUSTIVE")
 # 'auto' planner: FFTW_ESTIMATE below this many points per transform, FFTW_MEASURE from it on.
 # Measured on the 2-core reference machine (3-component batched r2c): at 128^3 MEASURE (1.4 s of
@@ -77,7 +81,7 @@ class Backend:
     xp : the array module (numpy or cupy)
     dtype : real floating dtype of grid fields (float64, or float32 when asked)
     fft_workers : threads for the CPU FFT (pyFFTW ``threads`` / scipy ``workers``)
-    fft_library : 'pyfftw' | 'scipy' on CPU, 'cupy' on GPU
+    fft_library : 'pyfftw' | 'scipy' (| 'numpy': the GPU code path ``xp.fft``, for tests) on CPU, 'cupy' on GPU
     fft_planner : FFTW planner effort for pyFFTW plans ('auto': see AUTO_MEASURE_POINTS)
     """
 
@@ -101,6 +105,12 @@ class Backend:
     @property
     def is_gpu(self) -> bool:
         return self.name == "cupy"
+
+    @property
+    def uses_xp_fft(self) -> bool:
+        """True when the FFTs call the array module's own ``xp.fft`` (always on GPU; on CPU with
+        ``fft_library='numpy'``, which runs the GPU code path on NumPy arrays)."""
+        return self.is_gpu or self.fft_library == "numpy"
 
     def empty(self, shape, dtype=None):
         """Uninitialised array; SIMD-aligned on CPU when pyFFTW is in use (lets FFTW skip copies)."""
@@ -142,7 +152,7 @@ class Backend:
         if self.fft_library == "pyfftw":
             return self._fftw_r2c(a, axes, out)
         a = a.astype(self.dtype, copy=False)  # float32 runs stay in single precision (complex64)
-        if self.is_gpu:
+        if self.uses_xp_fft:
             res = self.xp.fft.rfftn(a, axes=axes)
         else:
             import scipy.fft as sfft
@@ -166,7 +176,7 @@ class Backend:
             if norm == "backward":
                 res *= 1.0 / math.prod(s)
             return res
-        if self.is_gpu:
+        if self.uses_xp_fft:
             res = self.xp.fft.irfftn(a, s=s, axes=axes, norm=norm)
         else:
             import scipy.fft as sfft
@@ -292,7 +302,9 @@ def get_backend(name="numpy", dtype="float64", fft_workers=1, fft_library="auto"
            else NumPy).
     dtype : 'float64' (default) or 'float32' (grid fields and FFTs in single precision).
     fft_workers : threads for the CPU FFT (>= 1).
-    fft_library : CPU only: 'auto' (pyFFTW if importable, else scipy.fft), 'pyfftw' or 'scipy'.
+    fft_library : CPU only: 'auto' (pyFFTW if importable, else scipy.fft), 'pyfftw', 'scipy', or 'numpy'
+           (``numpy.fft`` through ``xp.fft``: the FFT code path of the CuPy backend, for testing it on the
+           CPU; slower, never chosen by 'auto'). Ignored for 'cupy' (always ``cupy.fft``).
     fft_planner : FFTW planner effort for pyFFTW: 'auto' (default: FFTW_ESTIMATE below 2^23 points
            per transform, FFTW_MEASURE from 256^3 on, where it was 4x faster), or an explicit
            'FFTW_ESTIMATE' / 'FFTW_MEASURE' / 'FFTW_PATIENT' / 'FFTW_EXHAUSTIVE'.

@@ -18,10 +18,34 @@ the *nominal* (configured) Delta and S; the datasets themselves record the meshe
 Catalog
 -------
 ``write_catalog`` writes ``catalog.csv`` (one row per netCDF dataset) and an ESM-collection JSON beside it
-(esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attributes``, ``assets``, ``catalog_file``).
-Columns: kind (mesh | trajectory | spectra | theory | fit), case_id, Delta, S, chi, N, mesh_family, mesh_level,
-backend, path, created, package_version, plus delta_mesh, l_star, t_star where the dataset has them.
-``path`` is relative to the directory holding the catalog, so a results tree can be moved as a whole.
+(esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attributes``, ``assets``, ``aggregation_control``,
+``catalog_file``). Columns (:data:`COLUMNS`):
+
+    kind              mesh | trajectory | spectra | theory | fit
+    case_id           the id above (file stem for meshes, theory and fits)
+    Delta, S, chi, N  nominal parameters from the id, else the dataset's attributes
+    mesh_family, mesh_level, n_vertices
+                      icosphere | quasiuniform, subdivision level (icosphere), vertex count; from the mesh
+                      attributes (``mesh_*`` on runs), the id, the ``n_node`` dimension, or 10 4^L + 2 for an
+                      icosphere of level L
+    scheme, dtype, kernel
+                      run configuration of trajectories and spectra (kernel "peskin4" for files written before
+                      the kernel option, which always used it); empty for the other kinds
+    backend           numpy | cupy (runs)
+    tag               the tag of the case id (the sweep group's ``tag``), empty when untagged
+    path, created, package_version
+    delta_mesh, l_star, t_star   where the dataset has them
+    variables         the file's data variables, as a list literal (the ESM variable column)
+
+Missing values are empty cells; integral numbers are written without ".0" (``S`` 553, not 553.0). ``path`` is
+relative to the directory holding the catalog, so a results tree can be moved as a whole.
+
+intake-esm (tested with 2025.12.12): ``intake.open_esm_datastore("results/catalog.json")`` groups the assets by
+kind and case id (keys ``spectra.D0.116_S553_N32_L3``, one file each). It reads every column as text, so search
+with ``N="64"``, ``S="553"`` (a number matches nothing), and a variable by pattern: ``variables=".*'l_star'.*"``.
+It opens the relative ``path`` from the current working directory, not from the catalog's: call
+``to_dataset_dict()`` with the catalog's directory as working directory (or use :func:`open_sweep`, which resolves
+the paths itself).
 
 Sweep as one Dataset
 --------------------
@@ -38,8 +62,12 @@ the dimensions ``Delta`` and ``S`` (outer join; points not in the sweep are NaN)
 * mode arrays with an ``m`` dimension (u_lm), A_p maps and geometry arrays are dropped (open a single run's file
   for those: the ``path`` variable holds its location).
 
-Per-point metadata become variables on (Delta, S): ``case_id``, ``path``, ``chi``, ``N``, ``mesh_level``.
-If two catalog rows share (Delta, S) (e.g. two grids), pass a filter such as ``N=64`` or ``case_id=...``.
+Per-point metadata become variables on (Delta, S): ``case_id``, ``path``, ``chi``, ``N``, ``mesh_level``,
+``n_vertices``, ``mesh_family``, ``scheme``, ``dtype``, ``kernel``, ``tag``.
+If two catalog rows share (Delta, S) (e.g. two grids or two meshes), select by any catalog column:
+``open_sweep("results/catalog.csv", N=64, n_vertices=642)``, ``scheme="projection"``, ``tag="coarse"``. Numeric
+columns compare as numbers (``n_vertices="642"`` selects 642; floats to 1e-9 relative), a list selects any of its
+values, ``None`` or ``""`` selects empty cells, and ``variables="l_star"`` the files holding that variable.
 """
 
 from __future__ import annotations
@@ -57,21 +85,27 @@ import numpy as np
 from .errors import ConfigError, VesicleError
 
 __all__ = [
-    "fmt_number",
-    "case_id",
-    "mesh_id",
-    "theory_id",
-    "parse_case_id",
-    "catalog_row",
-    "build_catalog",
-    "write_catalog",
-    "read_catalog",
-    "open_sweep",
     "COLUMNS",
+    "build_catalog",
+    "case_id",
+    "catalog_row",
+    "fmt_number",
+    "mesh_id",
+    "open_sweep",
+    "parse_case_id",
+    "read_catalog",
+    "select_rows",
+    "theory_id",
+    "write_catalog",
 ]
 
-COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_level", "backend", "path", "created",
-           "package_version", "delta_mesh", "l_star", "t_star")
+COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype",
+           "kernel", "backend", "tag", "path", "created", "package_version", "delta_mesh", "l_star", "t_star",
+           "variables")
+NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "delta_mesh", "l_star", "t_star")
+INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices")
+RUN_KINDS = ("trajectory", "spectra")
+DEFAULT_KERNEL = "peskin4"  # the only kernel before RunConfig.kernel existed (files without a 'kernel' attribute)
 KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")
 ESMCAT_VERSION = "0.1.0"
 TAG_PATTERN = r"[A-Za-z0-9][A-Za-z0-9-]*"
@@ -249,6 +283,32 @@ def _num_or_nan(v):
     return v
 
 
+def _text_attr(attrs, name):
+    """A string attribute as text (None when absent or empty); unlike _scalar_attr never turned into a number."""
+    if name not in attrs:
+        return None
+    v = attrs[name]
+    if isinstance(v, (bytes, np.bytes_)):
+        v = v.decode()
+    v = str(v).strip()
+    return v or None
+
+
+def _n_vertices(ds, attrs, kind, parsed, family, level):
+    """Vertex count of the mesh a dataset is on (None for theory and fits, or when nothing tells it)."""
+    if kind not in ("mesh", *RUN_KINDS):
+        return None
+    nv = _scalar_attr(attrs, "n_vertices" if kind == "mesh" else "mesh_n_vertices")
+    if nv is None:
+        nv = parsed.get("n_vertices")
+    if nv is None and "n_node" in ds.sizes:
+        nv = ds.sizes["n_node"]
+    if nv is None and family == "icosphere" and level is not None:
+        nv = 10 * 4 ** int(level) + 2  # an icosphere of level L has exactly this many vertices
+    nv = _num_or_nan(nv)
+    return int(nv) if math.isfinite(nv) and nv > 0 else None
+
+
 def catalog_row(path, root=None) -> dict:
     """One catalog row for a netCDF dataset (kind, parameters, path relative to ``root``, creation time...)."""
     import xarray as xr
@@ -288,13 +348,19 @@ def catalog_row(path, root=None) -> dict:
         if level is None:
             lv = _scalar_attr(attrs, "mesh_level", "level")
             level = lv if lv is not None and _num_or_nan(lv) >= 0 else None
+        n_vertices = _n_vertices(ds, attrs, kind, parsed, family, level)
+        run = {"scheme": None, "dtype": None, "kernel": None}
+        if kind in RUN_KINDS:
+            run = {c: _text_attr(attrs, c) for c in run}
+            run["kernel"] = run["kernel"] or DEFAULT_KERNEL
         row.update(
             Delta=_num_or_nan(delta), S=_num_or_nan(S), chi=_num_or_nan(chi),
             N=int(N) if N is not None else None, mesh_family=family if kind != "theory" and kind != "fit" else None,
             mesh_level=int(level) if level is not None and kind not in ("theory", "fit") else None,
             backend=_scalar_attr(attrs, "backend") if kind in ("trajectory", "spectra") else None,
             created=_created(attrs, path), package_version=_package_version(attrs),
-            delta_mesh=_num_or_nan(delta_mesh),
+            delta_mesh=_num_or_nan(delta_mesh), n_vertices=n_vertices, tag=parsed.get("tag"),
+            variables=repr(sorted(str(v) for v in ds.data_vars)), **run,
         )
         if kind in ("spectra", "theory"):
             for name in ("l_star", "t_star"):
@@ -319,7 +385,9 @@ def _fmt_cell(v):
     if v is None:
         return ""
     if isinstance(v, float):
-        return "" if math.isnan(v) else repr(v)
+        if math.isnan(v):
+            return ""
+        return str(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
     return str(v)
 
 
@@ -334,13 +402,19 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
         "N": "grid nodes per axis",
         "mesh_family": "icosphere | quasiuniform",
         "mesh_level": "icosphere subdivision level",
+        "n_vertices": "number of mesh vertices",
+        "scheme": "time-stepping scheme of the run (projection | explicit | inextensible)",
+        "dtype": "floating-point precision of the run's grid fields (float64 | float32)",
+        "kernel": "regularised delta function of the run (peskin4 | roma3 | bao6)",
         "backend": "array backend of the run (numpy | cupy)",
+        "tag": "tag of the case (its sweep group), empty when untagged",
         "path": "file location relative to the directory of this catalog",
         "created": "creation time (ISO 8601, UTC) from the dataset's history attribute",
         "package_version": "vesicle_core version that wrote the dataset",
         "delta_mesh": "excess area of the meshed surface (1)",
         "l_star": "characteristic wrinkle mode l_* of eq. (31) at t_*",
         "t_star": "t_* = argmin Delta_2, gamma_dot (t - t0)",
+        "variables": "data variables of the file, as a list literal ['A_p_bar', 'Delta_l', ...]",
     }
     return {
         "esmcat_version": ESMCAT_VERSION,
@@ -351,6 +425,10 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
         "attributes": [{"column_name": c, "vocabulary": "", "description": described[c]} for c in COLUMNS
                        if c != "path"],
         "assets": {"column_name": "path", "format": "netcdf"},
+        # intake-esm groups assets by these columns; without aggregation_control it would group by every column and
+        # refuse the columns that are empty for some kinds (S of a mesh, ...). kind and case_id are never empty.
+        "aggregation_control": {"variable_column_name": "variables", "groupby_attrs": ["kind", "case_id"],
+                                "aggregations": []},
     }
 
 
@@ -399,25 +477,149 @@ def _catalog_csv(path) -> Path:
     return path
 
 
-def read_catalog(path) -> list[dict]:
-    """Rows of a catalog (CSV, its ESM JSON, or a directory holding catalog.csv); numeric columns as numbers and
-    an extra ``abspath`` with the absolute file location."""
+def _parse_variables(text) -> tuple:
+    import ast
+
+    try:
+        v = ast.literal_eval(text) if text else ()
+    except (ValueError, SyntaxError):
+        return ()
+    return tuple(str(x) for x in v) if isinstance(v, (list, tuple, set)) else ()
+
+
+def _read_catalog(path) -> tuple[Path, list[str], list[dict]]:
+    """(CSV path, the columns the CSV has, rows). Columns of :data:`COLUMNS` that an older CSV lacks are filled
+    with empty values in the rows (but are not in the returned column list)."""
     csv_path = _catalog_csv(path)
     rows = []
     with open(csv_path, newline="") as fh:
-        for r in csv.DictReader(fh):
-            out = dict(r)
-            for c in ("Delta", "S", "chi", "delta_mesh", "l_star", "t_star"):
-                out[c] = float(r[c]) if r.get(c) not in (None, "") else math.nan
-            for c in ("N", "mesh_level"):
-                out[c] = int(float(r[c])) if r.get(c) not in (None, "") else None
+        reader = csv.DictReader(fh)
+        header = list(reader.fieldnames or [])
+        if "path" not in header:
+            raise CatalogError(f"{csv_path}: not a catalog (no 'path' column; columns: {', '.join(header)})")
+        for r in reader:
+            out = {c: "" for c in COLUMNS}
+            out.update(r)
+            for c in NUMERIC_COLUMNS:
+                v = out.get(c)
+                if c in INTEGER_COLUMNS:
+                    out[c] = int(float(v)) if v not in (None, "") else None
+                else:
+                    out[c] = float(v) if v not in (None, "") else math.nan
+            out["variables"] = _parse_variables(out.get("variables"))
             p = Path(r["path"])
             out["abspath"] = str(p if p.is_absolute() else (csv_path.parent / p).resolve())
             rows.append(out)
-    return rows
+    return csv_path, header, rows
+
+
+def read_catalog(path) -> list[dict]:
+    """Rows of a catalog (CSV, its ESM JSON, or a directory holding catalog.csv); numeric columns as numbers
+    (NaN, or None for the integer columns N, mesh_level, n_vertices, when empty), ``variables`` as a tuple of
+    names, text columns as strings ("" when empty), and an extra ``abspath`` with the absolute file location."""
+    return _read_catalog(path)[2]
+
+
+# --------------------------------------------------------------------------- selecting rows
+def _is_empty(v) -> bool:
+    return v is None or (isinstance(v, str) and v == "") or (isinstance(v, float) and math.isnan(v))
+
+
+def _wanted_values(key, value) -> list:
+    """The values one selector accepts: a scalar, or any of a list/tuple/set; numbers for numeric columns,
+    None for "empty"."""
+    values = list(value) if isinstance(value, (list, tuple, set, frozenset, np.ndarray)) else [value]
+    out = []
+    for v in values:
+        if isinstance(v, np.generic):
+            v = v.item()
+        if _is_empty(v):
+            out.append(None)
+        elif key in NUMERIC_COLUMNS:
+            try:
+                if isinstance(v, bool):
+                    raise TypeError
+                out.append(float(v))
+            except (TypeError, ValueError):
+                raise CatalogError(f"selector {key}={v!r}: {key} is a numeric column, give a number") from None
+        else:
+            out.append(str(v))
+    if not out:
+        raise CatalogError(f"selector {key}={value!r}: give at least one value")
+    return out
+
+
+def _cell_matches(key, cell, wanted) -> bool:
+    if key == "variables":
+        return any((not cell) if w is None else (w in cell) for w in wanted)
+    if key in NUMERIC_COLUMNS:
+        x = _num_or_nan(cell)
+        return any(math.isnan(x) if w is None else (not math.isnan(x) and math.isclose(x, w, rel_tol=1e-9))
+                   for w in wanted)
+    text = "" if _is_empty(cell) else str(cell)
+    return any(text == ("" if w is None else w) for w in wanted)
+
+
+def _pandas():
+    try:
+        import pandas
+    except ImportError:  # xarray depends on pandas, so this is for completeness
+        return None
+    return pandas
+
+
+def select_rows(rows, columns, where: dict, source="catalog") -> list[dict]:
+    """The rows matching every selector ``column=value`` of ``where`` (semantics: module docstring).
+
+    columns: the columns the catalog has; a selector on any other name raises CatalogError naming them.
+    Filters with pandas when it is importable, else row by row (same result).
+    """
+    unknown = [k for k in where if k not in columns]
+    if unknown:
+        old = [k for k in unknown if k in COLUMNS]
+        hint = (f"; {', '.join(old)} {'is a column' if len(old) == 1 else 'are columns'} of catalogs written by "
+                f"this version: rebuild the catalog with 'vesicle catalog'") if old else ""
+        raise CatalogError(f"unknown catalog column{'s' if len(unknown) > 1 else ''} "
+                           f"{', '.join(map(repr, unknown))} in the selection; {source} has the columns: "
+                           f"{', '.join(c for c in columns)}{hint}")
+    wanted = {k: _wanted_values(k, v) for k, v in where.items()}
+    if not rows or not wanted:
+        return list(rows)
+    pd = _pandas()
+    if pd is None:
+        return [r for r in rows if all(_cell_matches(k, r.get(k), w) for k, w in wanted.items())]
+    df = pd.DataFrame({k: [r.get(k) for r in rows] for k in wanted})
+    mask = np.ones(len(rows), dtype=bool)
+    for key, values in wanted.items():
+        col = df[key]
+        hit = np.zeros(len(rows), dtype=bool)
+        if key == "variables":
+            for w in values:
+                hit |= col.map(lambda cell, w=w: (not cell) if w is None else (w in cell)).to_numpy(dtype=bool)
+        elif key in NUMERIC_COLUMNS:
+            x = pd.to_numeric(col, errors="coerce").to_numpy(dtype=float)
+            for w in values:
+                hit |= np.isnan(x) if w is None else np.isclose(x, w, rtol=1e-9, atol=0.0)
+        else:
+            text = col.astype(object).where(col.notna(), "").map(str)
+            for w in values:
+                hit |= (text == ("" if w is None else w)).to_numpy(dtype=bool)
+        mask &= hit
+    return [r for r, keep in zip(rows, mask) if keep]
 
 
 _TIME_SERIES_DROP_DIMS = ("m", "theta", "phi", "axis", "principal")
+# columns named in the "two datasets at one (Delta, S)" error when they tell the two apart
+_SELECT_HINT_COLUMNS = ("N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype", "kernel", "backend", "tag",
+                        "chi")
+
+
+def _same(a, b) -> bool:
+    if _is_empty(a) and _is_empty(b):
+        return True
+    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
+        return math.isclose(float(a), float(b), rel_tol=1e-9)
+    return a == b
 
 
 def _reduce_one(ds, time_grid, kind):
@@ -468,27 +670,29 @@ def open_sweep(path, kind: str = "spectra", time=None, **where):
 
     path: catalog CSV, its ESM JSON, or the directory holding catalog.csv. kind: "spectra" (simulation, default)
     or "theory" (perturbation analysis). time: common time grid for the time series (default: see module
-    docstring). where: equality filters on catalog columns, e.g. ``N=64``, ``Delta=0.116``, ``case_id="..."``.
+    docstring). where: selectors on any catalog column, e.g. ``N=64``, ``n_vertices=642``, ``scheme="projection"``,
+    ``Delta=0.116``, ``case_id="..."``, ``tag=["coarse", ""]`` (see :func:`select_rows`); an unknown column name
+    raises CatalogError listing the catalog's columns.
     """
     import xarray as xr
 
     if kind not in ("spectra", "theory"):
         raise CatalogError(f"open_sweep stacks 'spectra' or 'theory' datasets, got kind={kind!r}")
-    rows = [r for r in read_catalog(path) if r["kind"] == kind]
-    for key, val in where.items():
-        if rows and key not in rows[0]:
-            raise CatalogError(f"unknown catalog column {key!r} in filter; columns: {', '.join(COLUMNS)}")
-        rows = [r for r in rows if (r[key] == val or (isinstance(val, float) and isinstance(r[key], float)
-                                                       and math.isclose(r[key], val, rel_tol=1e-9)))]
+    csv_path, columns, rows = _read_catalog(path)
+    rows = select_rows([r for r in rows if r["kind"] == kind], columns, where, source=str(csv_path))
     if not rows:
         raise CatalogError(f"{path}: no {kind} datasets" + (f" matching {where}" if where else ""))
     keys = {}
     for r in rows:
         k = (r["Delta"], r["S"])
         if k in keys:
-            raise CatalogError(f"two {kind} datasets at Delta={k[0]:g}, S={k[1]:g} ({keys[k]} and {r['case_id']}); "
-                               "pass a filter such as N=... or case_id=...")
-        keys[k] = r["case_id"]
+            other = keys[k]
+            differ = [c for c in _SELECT_HINT_COLUMNS if c in columns and not _same(other[c], r[c])]
+            hint = (f"select one with a column where they differ: {', '.join(f'{c}=...' for c in differ)} "
+                    "(or case_id=...)") if differ else "select one with case_id=..."
+            raise CatalogError(f"two {kind} datasets at Delta={k[0]:g}, S={k[1]:g} ({other['case_id']} and "
+                               f"{r['case_id']}); {hint}")
+        keys[k] = r
     dss = []
     for r in rows:
         with xr.open_dataset(r["abspath"], engine="netcdf4") as ds:
@@ -497,9 +701,11 @@ def open_sweep(path, kind: str = "spectra", time=None, **where):
     parts = []
     for r, ds in zip(rows, dss):
         red = _reduce_one(ds, grid, kind)
-        meta = {"case_id": r["case_id"], "path": r["abspath"], "chi": r["chi"],
-                "N": float(r["N"]) if r["N"] is not None else math.nan,
-                "mesh_level": float(r["mesh_level"]) if r["mesh_level"] is not None else math.nan}
+        meta = {"case_id": r["case_id"], "path": r["abspath"], "chi": r["chi"]}
+        for c in INTEGER_COLUMNS:
+            meta[c] = float(r[c]) if r[c] is not None else math.nan
+        for c in ("mesh_family", "scheme", "dtype", "kernel", "tag"):
+            meta[c] = str(r[c] or "")
         for k, v in meta.items():
             red[k] = xr.DataArray(v)
         red = red.expand_dims(Delta=[r["Delta"]], S=[r["S"]])

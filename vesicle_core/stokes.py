@@ -43,6 +43,12 @@ grid buffer and avoid page-faulting a fresh 3 N^3 array every step. Measured at 
 the steady projection/scaling adds 10-15 ms to the 60-70 ms FFT round trip (~80 ms to 110 ms at
 256^3 against ~0.8 s); the finite-density update costs about twice the steady one. Changing dt
 rebuilds the per-dt symbol arrays (exp/expm1 over N^3/2 modes), so keep dt fixed where possible.
+
+Spectral layouts. CPU (NumPy): the interleaved real view above, in slabs of ~1 MiB. GPU (CuPy): the
+complex spectrum itself, symbols once per mode and the whole grid as one chunk (one kernel launch per
+operation). ``StokesSolver(..., interleave=None)`` picks by backend; ``interleave=False`` forces the GPU
+layout on NumPy (how the tests check it without a GPU), ``interleave=True`` the CPU layout. Both give the
+same velocities to round-off.
 """
 
 from __future__ import annotations
@@ -103,9 +109,15 @@ class StokesSolver:
     backend : Backend (NumPy or CuPy; ``backend.dtype`` float32 switches to float32/complex64
         fields and symbols, see :attr:`single_precision`).
     rho_bar : dimensionless fluid density >= 0; 0 = steady Stokes.
+    interleave : spectral layout of the in-place kernels (module docstring, "Spectral layouts").
+        None (default): automatic, the interleaved real view in ~1 MiB slabs on NumPy and the complex
+        layout in one chunk on CuPy. False: the complex, single-chunk GPU layout on any backend (lets the
+        CPU tests run the GPU code path). True: the interleaved layout on any backend.
     """
 
-    def __init__(self, grid, backend, rho_bar=0.0):
+    def __init__(self, grid, backend, rho_bar=0.0, interleave=None):
+        if interleave is not None and not isinstance(interleave, (bool, np.bool_)):
+            raise ConfigError(f"interleave must be None (automatic), True or False, got {interleave!r}")
         self.grid = grid
         self.backend = backend
         self.rho_bar = float(check_range("rho_bar", rho_bar, 0.0, None))
@@ -131,7 +143,8 @@ class StokesSolver:
             self._ginv = np.where(g2 > 0.0, 1.0 / np.where(g2 > 0.0, g2, 1.0), 0.0)
 
         # CPU: act on the interleaved real view of the spectrum -> repeat symbols along last axis.
-        self._interleave = not backend.is_gpu
+        # GPU (or interleave=False): the complex spectrum, one chunk.
+        self._interleave = (not backend.is_gpu) if interleave is None else bool(interleave)
         rep = 2 if self._interleave else 1
         last = Nh * rep
         # g_x varies along the chunked axis (broadcast (m, 1, 1): long inner loops); g_y and g_z
@@ -167,6 +180,12 @@ class StokesSolver:
     @property
     def steady(self) -> bool:
         return self.rho_bar == 0.0
+
+    @property
+    def interleaved(self) -> bool:
+        """True when the kernels act on the interleaved real view (CPU layout), False for the complex
+        single-chunk layout (GPU layout; see the ``interleave`` argument)."""
+        return self._interleave
 
     def _to_dev(self, sym):
         """Host float64 symbol (N, N, Nh) -> device array in the layout the kernels use."""
