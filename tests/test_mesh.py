@@ -36,7 +36,7 @@ def test_family_closed_oriented_and_scaled(family, kw):
 def test_paper_ellipsoid_delta_at_fine_level():
     m = M.make_vesicle("icosphere", level=5, axes=(1.0, 0.8, 1.0))
     assert m.excess_area() == pytest.approx(0.116, abs=0.003)
-    # the faceting adds area of its own (CALIBRATION.md): coarse meshes overestimate Delta
+    # the faceting adds area of its own: coarse meshes overestimate Delta
     assert M.make_vesicle("icosphere", level=2).excess_area() > 0.15
 
 

@@ -331,7 +331,7 @@ def build_parser():
 
 
 def main(argv=None):
-    # spinning OpenBLAS threads slow the FFT 5-10x (CALIBRATION.md); the solver uses no BLAS-heavy code
+    # spinning OpenBLAS threads slowed the FFT 5-10x on the reference machine; the solver uses no BLAS-heavy code
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     parser = build_parser()
     args = parser.parse_args(argv)

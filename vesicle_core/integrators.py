@@ -17,6 +17,7 @@ time-integrated displacement of eq. (29) (finite Re).
 
 from __future__ import annotations
 
+import abc
 import math
 
 import numpy as np
@@ -24,7 +25,7 @@ import numpy as np
 from .flow import background_velocity
 
 
-class Integrator:
+class Integrator(abc.ABC):
     """Interface: a fixed step ``dt`` unless ``adaptive``; state kept on the run's State object."""
 
     name = "base"
@@ -38,8 +39,9 @@ class Integrator:
     def next_dt(self, state, geo) -> float:
         return self.dt
 
+    @abc.abstractmethod
     def step(self, state, X, F, geo, dt, rate):
-        raise NotImplementedError
+        """Displacement of the vertices over one step of length dt (background flow at ``rate`` included)."""
 
     def face_tension(self, state, geo):
         """Per-triangle tension for the output frames [kappa/R^2]."""

@@ -2,7 +2,7 @@
 ellipsoid of given axes ratio and scaled to the volume of a sphere of radius R.
 
 The excess area Delta = A / R^2 - 4 pi (Sec. III) is computed from the *meshed* surface: a faceted
-ellipsoid carries area of its own (CALIBRATION.md: the 1:0.8:1 ellipsoid has Delta = 0.1153 exactly
+ellipsoid carries area of its own (the 1:0.8:1 ellipsoid has Delta = 0.1153 exactly
 but 0.166 / 0.128 / 0.118 / 0.116 at icosphere levels 2-5), so every run records the meshed value.
 
 Faces are ordered counter-clockwise seen from outside (outward normals), as App. A requires.

@@ -15,7 +15,7 @@ lasts ``stretch`` (gamma_dot t) or until the shape is stationary, then the flow 
 and the run continues to ``t_end`` (gamma_dot t after the reversal).
 
 Time step. Explicit stepping is limited by the stiffest membrane mode: the area penalty
-(dt ~ 40 h / Lambda) or bending (dt ~ 13 h^3), see CALIBRATION.md. ``dt_rule="power"`` (default)
+(dt ~ 40 h / Lambda) or bending (dt ~ 13 h^3), both measured by power iteration. ``dt_rule="power"`` (default)
 measures the largest eigenvalue |lam| of the linearised velocity operator dX/dt = M F(X) by power
 iteration at the initial shape and takes dt = safety * 2 / |lam| (explicit Euler is stable for
 |lam| dt < 2 on the real negative spectrum), capped by the formula estimate and by 0.01 / chi so the
@@ -257,7 +257,7 @@ def background_velocity(X, rate):
 
 
 def formula_dt(cfg: RunConfig, edge_mean: float, flow: bool = True) -> float:
-    """Stable-step estimate (tau) from CALIBRATION.md: area penalty 40 h/Lambda, bending 13 h^3 (edge ~ h)
+    """Stable-step estimate (tau) measured by power iteration on the linearised operator: area penalty 40 h/Lambda, bending 13 h^3 (edge ~ h)
     to 20 h^3 (edge ~ 2h), and 0.01/chi so the background flow moves a vertex by < 1% of R per step."""
     h = cfg.h
     lam = (0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff) + cfg.K_area
