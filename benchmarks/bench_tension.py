@@ -1,0 +1,76 @@
+"""The tension operator of the inextensible scheme: its conditioning and the tension stability limit.
+
+    python benchmarks/bench_tension.py [--N 64] [--n-vertices 642] [--chi 267.8]
+
+1. Tension stability: the largest eigenvalue |lam| of the linearised membrane velocity under a uniform tension
+   sigma (bending + sigma H, power iteration), for sigma = 0, 2000, 8000. |lam| h / sigma is the constant behind
+   integrators.TENSION_STABILITY (forward Euler is stable for |lam| dt < 2).
+2. Conditioning: the dense operator A = dt D M D^T + W / Lambda (one Stokes solve per triangle: keep the mesh
+   small), its condition number with the compliance preconditioner W / Lambda, and the spectrum's band shape:
+   the area rate per unit tension of each Laplacian eigenmode against its wavenumber q.
+"""
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+
+import numpy as np  # noqa: E402
+import scipy.linalg as sl  # noqa: E402
+
+from vesicle_core import mesh as M  # noqa: E402
+from vesicle_core.mobility import IBMMobility  # noqa: E402
+from vesicle_core.simulate import IBMSolver, RunConfig, power_dt  # noqa: E402
+from vesicle_core.tension import TensionSolver  # noqa: E402
+
+
+def stability(mesh, N, chi):
+    for sigma in (0.0, 2000.0, 8000.0):
+        s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible"))
+        forces = s.membrane.forces
+        s.membrane.forces = lambda X, f=forces, sg=sigma: (lambda F, g: (F + sg * g.H, g))(*f(X))
+        _, lam = power_dt(s, s.xp.asarray(mesh.vertices), iters=60)
+        ratio = f"{lam * s.grid.h / sigma:.3f}" if sigma else "-"
+        print(f"sigma = {sigma:6.0f}: |lam|max = {lam:.4g} /tau   |lam| h / sigma = {ratio}", flush=True)
+
+
+def conditioning(mesh, N, chi, Lam, dt):
+    s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible"))
+    X = mesh.vertices
+    _, geo = s.forces(X)
+    mob = IBMMobility(s.coupler, s.stokes)
+    mob.prepare(X)
+    W = geo.area.copy()
+    ts = TensionSolver(mob, s.membrane.topo, W, Lam)
+    n = len(W)
+    A = np.empty((n, n))
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = 1.0
+        A[:, j] = ts.operator(e, geo, 1.0)[0]
+    print(f"dense operator: asymmetry {np.abs(A - A.T).max() / np.abs(A).max():.1e}", flush=True)
+    A = 0.5 * (A + A.T)
+    ev = sl.eigh(dt * A + np.diag(W / Lam), np.diag(W / Lam), eigvals_only=True)
+    print(f"compliance-preconditioned: eigenvalues [{ev.min():.3g}, {ev.max():.3g}], condition number "
+          f"{ev.max() / ev.min():.3g} (dt = {dt:.3g}, Lambda = {Lam:.3g})")
+    Wh = np.diag(W**-0.5)
+    rho, Q = np.linalg.eigh(Wh @ A @ Wh)
+    return rho, Q
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--N", type=int, default=64)
+    ap.add_argument("--n-vertices", type=int, default=642)
+    ap.add_argument("--chi", type=float, default=267.8)
+    a = ap.parse_args()
+    mesh = M.make_vesicle("quasiuniform", n_vertices=a.n_vertices, axes=(1.0, 0.8, 1.0))
+    stability(mesh, a.N, a.chi)
+    rho, _ = conditioning(mesh, a.N, a.chi, Lam=max(1e6, 5e4 * a.chi), dt=0.01 / a.chi)
+    print(f"area rate per unit tension (W^-1/2 D M D^T W^-1/2): max {rho.max():.3g}, median {np.median(rho):.3g}, "
+          f"min {rho.min():.3g}")
+
+
+if __name__ == "__main__":
+    main()
