@@ -14,22 +14,31 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
+import argparse
 
-import numpy as np  # noqa: E402
-import scipy.linalg as sl  # noqa: E402
+import numpy as np
+import scipy.linalg as sl
 
-from vesicle_core import mesh as M  # noqa: E402
-from vesicle_core.mobility import IBMMobility  # noqa: E402
-from vesicle_core.simulate import IBMSolver, RunConfig, power_dt  # noqa: E402
-from vesicle_core.tension import TensionSolver  # noqa: E402
+from vesicle_core import mesh as M
+from vesicle_core.mobility import IBMMobility
+from vesicle_core.simulate import IBMSolver, RunConfig, power_dt
+from vesicle_core.tension import TensionSolver
+
+
+def _with_uniform_tension(forces, sigma):
+    """Membrane forces plus the force sigma H of a uniform tension (held fixed while the shape moves)."""
+
+    def f(X):
+        F, geo = forces(X)
+        return F + sigma * geo.H, geo
+
+    return f
 
 
 def stability(mesh, N, chi):
     for sigma in (0.0, 2000.0, 8000.0):
         s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible"))
-        forces = s.membrane.forces
-        s.membrane.forces = lambda X, f=forces, sg=sigma: (lambda F, g: (F + sg * g.H, g))(*f(X))
+        s.membrane.forces = _with_uniform_tension(s.membrane.forces, sigma)
         _, lam = power_dt(s, s.xp.asarray(mesh.vertices), iters=60)
         ratio = f"{lam * s.grid.h / sigma:.3f}" if sigma else "-"
         print(f"sigma = {sigma:6.0f}: |lam|max = {lam:.4g} /tau   |lam| h / sigma = {ratio}", flush=True)
