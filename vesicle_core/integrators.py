@@ -138,8 +138,14 @@ class Inextensible(Integrator):
         self.dt_bending = dt_bending  # stability limit of the bending force (power iteration), tau
         self.mobility = IBMMobility(solver.coupler, solver.stokes, solver._grid_buf)
         mem = solver.membrane
+        local = None
+        if cfg.cg_precond == "local":
+            from .tension import LocalPreconditioner
+
+            local = LocalPreconditioner(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff,
+                                        refresh=cfg.projection_refresh)
         self.tension = TensionSolver(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff, tol=cfg.cg_tol,
-                                     maxiter=cfg.cg_maxiter, cells="face")
+                                     maxiter=cfg.cg_maxiter, cells="face", local=local)
         self.l_grid = math.ceil(math.pi / cfg.h)  # the shortest wave the grid can carry, in R
         self.iterations = []
 
@@ -196,7 +202,8 @@ class Inextensible(Integrator):
             return {}
         return {"cg_iterations_median": float(np.median(it)), "cg_iterations_mean": float(it.mean()),
                 "cg_iterations_max": int(it.max()),
-                "stokes_solves": int(it.size + it.sum())}  # one for the warm-start velocity, one per iteration
+                "stokes_solves": int(it.size + it.sum()),  # one for the warm-start velocity, one per iteration
+                "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0))}  # local -> compliance repeats (this call)
 
 
 SCHEMES = {"explicit": Explicit, "projection": Projection, "inextensible": Inextensible}

@@ -81,6 +81,7 @@ class RunConfig:
     fft_workers: int = 1
     cg_tol: float = 1.0e-5  # inextensible: CG tolerance, rms area strain of the residual (50x below sigma/Lambda)
     cg_maxiter: int = 200  # inextensible: CG iterations before the run stops (NumericalInstability)
+    cg_precond: str = "compliance"  # inextensible: "compliance" (W/Lambda) | "local" (near-field IBM mobility)
     dt_growth: float = 0.1  # inextensible, adaptive dt: e-folds of the fastest wrinkle per step (flow: /10 strain)
 
     def __post_init__(self):
@@ -119,6 +120,8 @@ class RunConfig:
         check_range("cg_tol", self.cg_tol, 0.0, 1e-2, lo_open=True)
         check_range("cg_maxiter", self.cg_maxiter, 1, 100000, integer=True)
         check_range("dt_growth", self.dt_growth, 0.0, 1.0, lo_open=True)
+        if self.cg_precond not in ("compliance", "local"):
+            raise ConfigError(f"cg_precond must be 'compliance' or 'local', got {self.cg_precond!r}")
         if self.scheme == "inextensible" and self.Re > 0:
             raise ConfigError(f"scheme 'inextensible' solves steady Stokes (Re = 0); got Re = {self.Re:g}")
         if self.chi == 0 and self.stretch > 0:

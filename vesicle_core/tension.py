@@ -14,21 +14,20 @@ whose right-hand side also corrects the area error left by the previous step, so
 The step's velocity comes out of the solve: U = U_0 - sum_k alpha_k M D^T p_k (no extra Stokes solve).
 
 Solver: conjugate gradients, warm-started (the integrator extrapolates the last two tensions), with M
-applied matrix-free (one Stokes solve per iteration) and the compliance W / Lambda as preconditioner.
-Convergence is measured in strain: rms |r| / A^0 <= tol. A solve that does not converge within
-``maxiter`` iterations raises NumericalInstability: never a silent step.
+applied matrix-free (one Stokes solve per iteration). Preconditioners: the compliance W / Lambda (default), or
+:class:`LocalPreconditioner`, dt D M_loc D^T + W / Lambda with the IBM's measured near-field mobility M_loc,
+LU-factorised every few steps. Convergence is measured in strain: rms |r| / A^0 <= tol. A solve that does not
+converge within ``maxiter`` iterations raises NumericalInstability: never a silent step.
 
-Why only this preconditioner (measured, benchmarks/bench_tension.py; N = 64, 642 vertices, edge ~ 2h,
-Lambda = 1.3e7, dt = 3.7e-5): in the eigenbasis of the surface Laplacian the operator is a band-pass in
-the wavenumber q -- the area rate per unit tension rises like ~0.1 q at small q, peaks near q h ~ 0.5 and
-falls to ~0 at the mesh scale, where the kernel cannot see tension waves; uniform tension moves nothing.
-With the compliance as preconditioner the condition number is ~300. The local-mobility preconditioner
-(self and near-field pair mobility, Kallemov et al. 2016) is indefinite once truncated (smallest
-eigenvalue -0.07 against a self-mobility of 0.51, for cut-offs 1.5-3 h); the best preconditioner that is a
-function of the surface Laplacian alone still leaves a condition number of 145, because the operator
-mixes Laplacian modes strongly. Warm starts make the typical step need a few iterations; the price of a
-step is the count of Stokes solves it takes, reported per run (cg_iterations_*, stokes_solves).
-Prior art: Veerapaneni, Gueyffier, Zorin & Biros, JCP 228 (2009) (a tension solve each step for vesicles).
+Conditioning (measured, benchmarks/bench_tension.py; N = 64, 642 vertices, edge ~ 2h, Lambda = 1.3e7,
+dt = 3.7e-5): in the eigenbasis of the surface Laplacian the operator is a band-pass in the wavenumber q -- the
+area rate per unit tension rises like ~0.1 q at small q, peaks near q h ~ 0.5 and falls to ~0 at the mesh scale,
+where the kernel cannot see tension waves; uniform tension moves nothing. With the compliance as preconditioner
+the condition number is ~300; with the local mobility (pairs within 3h) 47. Functions of the surface Laplacian
+alone do no better than 145 (the operator mixes Laplacian modes), and sparse probing of the operator is
+indefinite. Prior art: Veerapaneni, Gueyffier, Zorin & Biros, JCP 228 (2009) (a tension solve each step for
+vesicles); Kallemov, Bhalla, Griffith & Donev, CAMCoS 11 (2016) (IB constraints preconditioned by a local
+mobility).
 """
 
 from __future__ import annotations
@@ -108,7 +107,7 @@ class TensionSolver:
     A0: reference cell areas (W); cells: "face" (one tension per triangle) or "vertex" (dual cells).
     """
 
-    def __init__(self, mobility, topo, A0, Lambda, tol=1e-6, maxiter=200, cells="face"):
+    def __init__(self, mobility, topo, A0, Lambda, tol=1e-6, maxiter=200, cells="face", local=None):
         if cells not in CELLS:
             raise ConfigError(f"cells must be one of {CELLS}, got {cells!r}")
         if not Lambda > 0:
@@ -123,7 +122,15 @@ class TensionSolver:
         self.cells = cells
         self.DT, self.D = (face_DT, face_D) if cells == "face" else (vertex_DT, vertex_D)
         self._pinv = self.Lambda / A0  # the compliance preconditioner W^{-1} Lambda
+        self.local = local  # LocalPreconditioner or None (compliance only)
         self.last = SolveInfo(0, 0.0, 0.0)
+
+    def _precondition(self, r, geo, dt):
+        if self.local is not None:
+            z = self.local(r, geo, dt)
+            if z is not None:
+                return z
+        return self._pinv * r
 
     def operator(self, p, geo, dt):
         """(A p, M D^T p) for a cell field p; A = dt D M D^T + W / Lambda."""
@@ -135,6 +142,22 @@ class TensionSolver:
         return float(xp.sqrt(xp.mean((r / self.A0) ** 2)))
 
     def solve(self, geo, F, u_inf, area_error, dt, sigma0):
+        """Tension sigma and velocity U (V, 3) of one step (see _solve); with the local preconditioner, a solve
+        that does not converge is repeated once with the compliance preconditioner before giving up."""
+        if self.local is None:
+            return self._solve(geo, F, u_inf, area_error, dt, sigma0)
+        try:
+            return self._solve(geo, F, u_inf, area_error, dt, sigma0)
+        except NumericalInstability:
+            local, self.local = self.local, None
+            self.fallbacks = getattr(self, "fallbacks", 0) + 1
+            try:
+                return self._solve(geo, F, u_inf, area_error, dt, sigma0)
+            finally:
+                self.local = local
+                local.solve_done()
+
+    def _solve(self, geo, F, u_inf, area_error, dt, sigma0):
         """Tension sigma and velocity U (V, 3) of one step; the mobility must be prepared at geo's positions.
 
         F: the other Lagrangian forces (bending, volume); u_inf: background velocity at the vertices (or 0);
@@ -147,7 +170,7 @@ class TensionSolver:
         res0 = res = self.strain_rms(r)
         it = 0
         if res > self.tol:
-            z = self._pinv * r
+            z = self._precondition(r, geo, dt)
             p = z
             rz = float(xp.sum(r * z))
             while True:
@@ -168,9 +191,85 @@ class TensionSolver:
                     raise NumericalInstability(
                         f"tension solve did not converge: rms strain residual {res:.3g} > cg_tol {self.tol:g} after "
                         f"{it} CG iterations (start {res0:.3g}); lower dt or raise cg_maxiter")
-                z = self._pinv * r
+                z = self._precondition(r, geo, dt)
                 rz_new = float(xp.sum(r * z))
                 p = z + (rz_new / rz) * p
                 rz = rz_new
+        if self.local is not None:
+            self.local.solve_done()
         self.last = SolveInfo(it, res, res0)
         return sigma, U
+
+
+def face_D_matrix(geo, topo):
+    """D for triangle cells as a scipy.sparse CSR matrix (F, 3V): row l holds dA_l/dX at its 3 corners."""
+    import scipy.sparse as sp
+
+    fT = np.asarray(topo.fT.get() if hasattr(topo.fT, "get") else topo.fT)
+    gA = np.asarray(geo.grad_area.get() if hasattr(geo.grad_area, "get") else geo.grad_area)  # (3 k, 3 c, F)
+    nF = fT.shape[1]
+    rows = np.broadcast_to(np.arange(nF)[None, None, :], (3, 3, nF))  # (corner, component, face)
+    cols = np.broadcast_to(3 * fT[:, None, :] + np.arange(3)[None, :, None], (3, 3, nF))
+    vals = np.transpose(gA, (1, 0, 2))
+    return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(nF, 3 * topo.n_vertices))
+
+
+class LocalPreconditioner:
+    """P = dt D M_loc D^T + W / Lambda, LU-factorised, with M_loc the IBM's near-field mobility.
+
+    M_loc: the measured self and pair mobility of the IBM (mobility.pair_table) for vertex pairs closer than
+    ``r_cut`` (default 3 h), tapered by (1 - (r/r_cut)^2)^2 (mobility.local_mobility_matrix; Kallemov, Bhalla,
+    Griffith & Donev, CAMCoS 11 (2016)). Refactorised every ``refresh`` solves or when dt leaves [0.7, 1.4] of the
+    dt it was built for. Measured on the dense operator (N = 64, 642 vertices, edge ~ 2h): condition number 47
+    with r_cut = 3h and 28 with 4h, against 298 for the compliance alone. The truncated mobility stays positive
+    definite only for short cut-offs: smallest eigenvalue +0.0065 at 3h but -0.0062 at 4h (N = 128, 2562
+    vertices, self-mobility 1.05), and with 4h the CG stalls there; with edge ~ h it is indefinite even at 1.5h.
+    A preconditioned residual with r.z <= 0 falls back to the compliance preconditioner for that iteration, and
+    TensionSolver repeats an unconverged solve once with the compliance preconditioner.
+    Construct it before preparing the mobility for a step: measuring the pair table replaces the stencil.
+    """
+
+    def __init__(self, mobility, topo, A0, Lambda, r_cut_h=3.0, refresh=10):
+        from .mobility import pair_table
+
+        self.topo = topo
+        self.W = np.asarray(A0.get() if hasattr(A0, "get") else A0)
+        self.Lambda = float(Lambda)
+        self.table = pair_table(mobility, r_max=r_cut_h)
+        self.r_cut = r_cut_h * mobility.grid.h
+        self.refresh = int(refresh)
+        self.xp = topo.xp
+        self._lu = None
+        self._dt = None
+        self._uses = 0
+        self.factorisations = 0
+
+    def _build(self, geo, dt):
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+
+        from .mobility import local_mobility_matrix
+
+        X = np.asarray(geo.P.get() if hasattr(geo.P, "get") else geo.P)  # corner positions -> vertices
+        fT = np.asarray(self.topo.fT.get() if hasattr(self.topo.fT, "get") else self.topo.fT)
+        pos = np.empty((self.topo.n_vertices, 3))
+        for c in range(3):
+            pos[fT[c]] = X[:, c].T
+        D = face_D_matrix(geo, self.topo)
+        P = dt * (D @ local_mobility_matrix(pos, self.table, r_cut=self.r_cut) @ D.T) + sp.diags(self.W / self.Lambda)
+        self._lu = spla.splu(P.tocsc())
+        self._dt = dt
+        self._uses = 0
+        self.factorisations += 1
+
+    def __call__(self, r, geo, dt):
+        if self._lu is None or self._uses >= self.refresh or not 0.7 <= dt / self._dt <= 1.4:
+            self._build(geo, dt)
+        rh = np.asarray(r.get() if hasattr(r, "get") else r)
+        z = self._lu.solve(rh)
+        if not float(rh @ z) > 0:
+            return None
+        return self.xp.asarray(z)
+
+    def solve_done(self):
+        self._uses += 1

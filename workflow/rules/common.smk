@@ -18,7 +18,7 @@ from vesicle_core.units import S_from_chi, chi_from_S
 RUN_KEYS = (
     "N", "L", "Re", "Lambda", "K_volume", "K_area", "area_model", "kernel", "scheme", "projection_refresh",
     "stretch", "stationary_tol", "t_end", "dt", "dt_safety", "output_every", "checkpoint_every", "max_drift",
-    "backend", "dtype", "fft_workers", "cg_tol", "cg_maxiter", "dt_growth",
+    "backend", "dtype", "fft_workers", "cg_tol", "cg_maxiter", "cg_precond", "dt_growth",
 )
 
 

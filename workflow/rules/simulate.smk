@@ -27,7 +27,8 @@ SIMULATE_SHELL = (
     " --set dt_safety={params.dt_safety} --set output_every={params.output_every}"
     " --set checkpoint_every={params.checkpoint_every} --set max_drift={params.max_drift}"
     " --set backend={params.backend} --set dtype={params.dtype} --set fft_workers={params.fft_workers}"
-    " --set cg_tol={params.cg_tol} --set cg_maxiter={params.cg_maxiter} --set dt_growth={params.dt_growth}"
+    " --set cg_tol={params.cg_tol} --set cg_maxiter={params.cg_maxiter} --set cg_precond={params.cg_precond}"
+    " --set dt_growth={params.dt_growth}"
     " > {log} 2>&1"
 )
 
