@@ -224,8 +224,9 @@ class LocalPreconditioner:
     with r_cut = 3h and 28 with 4h, against 298 for the compliance alone. The truncated mobility stays positive
     definite only for short cut-offs: smallest eigenvalue +0.0065 at 3h but -0.0062 at 4h (N = 128, 2562
     vertices, self-mobility 1.05), and with 4h the CG stalls there; with edge ~ h it is indefinite even at 1.5h.
-    A preconditioned residual with r.z <= 0 falls back to the compliance preconditioner for that iteration, and
-    TensionSolver repeats an unconverged solve once with the compliance preconditioner.
+    At N = 256 (10242 vertices) the CG with it stalls: use it up to 128^3. A preconditioned residual with
+    r.z <= 0 falls back to the compliance preconditioner for that iteration, and TensionSolver repeats an
+    unconverged solve once with the compliance preconditioner.
     Construct it before preparing the mobility for a step: measuring the pair table replaces the stencil.
     """
 
