@@ -259,8 +259,8 @@ def discussion(data) -> list[str]:
         text = ", ".join(f"{ratio:.2f} at S = {S:g} (Delta {d:g})" for S, ratio, d in pairs)
         out.append(f"- Simulation l_* (eq. 31) over the PA value of the same case: {text}. The paper's IBM at 512^3 "
                    "found l_* 7-40% *above* its PA at every S. Here the ratio falls with S: above 1 for weak flows, "
-                   "below 1 where the PA's l_* approaches what the grid and mesh can carry (CALIBRATION.md: the peak "
-                   "l grows with N).")
+                   "below 1 where the PA's l_* approaches what the grid and mesh can carry (docs/solver.md: the rate of "
+                   "a mode l relaxes at exp(-(l h / 1.04)^2) of theory with the 4-point kernel).")
     r0 = fine[0]
     if r0["N"] > 0:
         L_box = 5.0
