@@ -81,7 +81,7 @@ def write_sweep(root, points, *, N=32, level=3, theory=True, family="icosphere",
             tp.parent.mkdir(parents=True, exist_ok=True)
             synthetic_spectra(delta, S, n_time=51, t0=0.0, t1=1.5, l_max=20, kind="theory").to_netcdf(tp)
             paths.append(tp)
-    mp = root / "meshes" / f"{C.mesh_id(points[0][0], level=level)}.nc"
+    mp = root / "meshes" / f"{C.mesh_id(points[0][0], family, level=level, n_vertices=n_vertices)}.nc"
     mp.parent.mkdir(parents=True, exist_ok=True)
     xr.Dataset(
         {"node_x": ("n_node", np.zeros(4)), "node_y": ("n_node", np.zeros(4)), "node_z": ("n_node", np.zeros(4)),
@@ -99,10 +99,10 @@ def write_sweep(root, points, *, N=32, level=3, theory=True, family="icosphere",
 
 # --------------------------------------------------------------------------- ids
 @pytest.mark.parametrize("kwargs, expect", [
-    (dict(delta=0.116, S=553, N=64, level=4), "D0.116_S553_N64_L4"),
-    (dict(delta=0.116, S=1106.5, N=32, level=3), "D0.116_S1106.5_N32_L3"),
+    (dict(delta=0.116, S=553, N=64, family="icosphere", level=4), "D0.116_S553_N64_L4"),
+    (dict(delta=0.116, S=1106.5, N=32, family="icosphere", level=3), "D0.116_S1106.5_N32_L3"),
     (dict(delta=0.997, chi=83.5, N=512, family="quasiuniform", n_vertices=26070), "D0.997_chi83.5_N512_Q26070"),
-    (dict(delta=0.116, S=553, N=16, level=2, tag="fine-dt"), "D0.116_S553_N16_L2_fine-dt"),
+    (dict(delta=0.116, S=553, N=16, family="icosphere", level=2, tag="fine-dt"), "D0.116_S553_N16_L2_fine-dt"),
 ])
 def test_case_ids_are_readable_and_parse_back(kwargs, expect):
     cid = C.case_id(**kwargs)
@@ -116,7 +116,7 @@ def test_case_ids_are_readable_and_parse_back(kwargs, expect):
 
 
 def test_ids_do_not_depend_on_float_noise_and_reject_bad_input():
-    assert C.case_id(0.116, S=553.0000000001, N=32, level=3) == "D0.116_S553_N32_L3"
+    assert C.case_id(0.116, S=553.0000000001, N=32, family="icosphere", level=3) == "D0.116_S553_N32_L3"
     assert C.theory_id(0.116, 2224.0) == "D0.116_S2224"
     assert C.mesh_id(0.116, "icosphere", 3) == "icosphere_L3_D0.116"
     assert C.mesh_id(0.997, "quasiuniform", 5, 26070, 0) == "quasiuniform_n26070_s0_D0.997"
@@ -248,7 +248,7 @@ def real_runs(tmp_path_factory):
     root = tmp_path_factory.mktemp("real") / "results"
     delta, S = 0.17, 100.0
     cases = {
-        "A": {"mesh": M.make_vesicle("icosphere", level=1), "id_kw": {"level": 1},
+        "A": {"mesh": M.make_vesicle("icosphere", level=1), "id_kw": {"family": "icosphere", "level": 1},
               "cfg": {"scheme": "projection", "kernel": "peskin4", "dtype": "float64"}},
         "B": {"mesh": M.make_vesicle("quasiuniform", n_vertices=162),
               "id_kw": {"family": "quasiuniform", "n_vertices": 162, "tag": "alt"},

@@ -123,8 +123,9 @@ def test_one_sweep_point_by_its_file(tmp_path):
     assert r.returncode == 0, r.stderr + r.stdout
     jobs = planned_jobs(r.stdout)
     assert sorted(j["rule"] for j in jobs) == ["analyze", "mesh", "simulate"]
-    # parameters reach the shell as plain numbers: chi from S and Delta, every run key explicit
-    assert "--set chi=66.690084708" in r.stdout and "--set N=16 " in r.stdout and "--set Lambda=null" in r.stdout
+    # parameters reach `vesicle run -c run.yaml` as plain numbers: chi from S and Delta, every run key explicit
+    assert "chi: 66.690084708" in r.stdout and "\nN: 16\n" in r.stdout and "\nLambda: null\n" in r.stdout
+    assert "-c results/runs/D0.116_S553_N16_L2/run.yaml" in r.stdout
     assert "--delta 0.116" in r.stdout and "--level 2" in r.stdout
 
 
@@ -157,7 +158,7 @@ def test_duplicate_cases_are_refused(tmp_path):
 
 
 def test_config_files_satisfy_schema_and_solver():
-    """Every shipped config validates against the schema, and its run section (schema defaults filled in) is a
+    """Every shipped config validates against the schema, and its run section (table defaults filled in) is a
     valid vesicle_core.simulate.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
     from dataclasses import fields
 
@@ -166,14 +167,17 @@ def test_config_files_satisfy_schema_and_solver():
     from vesicle_core.simulate import RunConfig
     from vesicle_core.units import chi_from_S
 
+    from vesicle_core.parameters import RUN_PARAMETERS, defaults
+
     schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
-    run_props = yaml.safe_load(schema.read_text())["properties"]["run"]["properties"]
+    params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"
+    run_props = yaml.safe_load(params_schema.read_text())["$defs"]["run"]["properties"]
     assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
-    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "validation.yaml"):
+    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "validation.yaml", "convergence.yaml"):
         cfg = yaml.safe_load((ROOT / "config" / name).read_text())
         validate(cfg, str(schema))
         for group in cfg["sweep"]:
-            run = {**cfg["run"], **group.get("run", {})}
+            run = {**defaults(RUN_PARAMETERS, workflow_only=True), **cfg["run"], **group.get("run", {})}
             for S in group.get("S", []):
                 RunConfig.from_dict({**run, "chi": chi_from_S(S, group["delta"])})
     readme = (ROOT / "config" / "README.md").read_text()
@@ -190,7 +194,7 @@ def test_config_files_satisfy_schema_and_solver():
             for v in node:
                 yield from keys(v)
 
-    for key in set(keys(yaml.safe_load(schema.read_text()))):
+    for key in set(keys(yaml.safe_load(schema.read_text()))) | set(keys(yaml.safe_load(params_schema.read_text()))):
         assert f"`{key}`" in readme, f"config/README.md does not document the key {key!r}"
 
 
@@ -205,7 +209,7 @@ def test_paper_config_plans(tmp_path):
     for S in ("227", "553", "1106.5", "2224", "4448"):
         assert f"D0.116_S{S}_N512_Q26070" in sims
     assert "D0.997_S237_N512_Q26070" in sims and "D0.997_S947_N512_Q26070" in sims
-    assert "--set backend=cupy" in r.stdout and "--set N=512" in r.stdout
+    assert "\nbackend: cupy\n" in r.stdout and "\nN: 512\n" in r.stdout
     sim_blocks = r.stdout.split("rule simulate:")[1:]
     assert all("gpu=1" in b.split("\n\n")[0] for b in sim_blocks)
 

@@ -83,6 +83,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError, VesicleError
+from .parameters import MESH_PARAMETERS, RUN_PARAMETERS
+from .parameters import defaults as parameter_defaults
 
 __all__ = [
     "COLUMNS",
@@ -127,6 +129,11 @@ def fmt_number(x) -> str:
     return f"{x:.6g}".replace("e+", "e")
 
 
+# the id functions default to the parameter table's mesh and grid (one home for defaults)
+_MESH_DEFAULTS = parameter_defaults(MESH_PARAMETERS)
+_RUN_DEFAULT_N = parameter_defaults(RUN_PARAMETERS)["N"]
+
+
 def _mesh_part(family, level, n_vertices=None, seed=0):
     if family == "icosphere":
         return f"L{int(level)}"
@@ -136,7 +143,8 @@ def _mesh_part(family, level, n_vertices=None, seed=0):
     raise ConfigError(f"mesh family must be 'icosphere' or 'quasiuniform', got {family!r}")
 
 
-def case_id(delta, S=None, chi=None, N=32, family="icosphere", level=3, n_vertices=None, seed=0, tag=None) -> str:
+def case_id(delta, S=None, chi=None, N=_RUN_DEFAULT_N, family=_MESH_DEFAULTS["family"], level=_MESH_DEFAULTS["level"],
+            n_vertices=None, seed=0, tag=None) -> str:
     """Id of one simulation case from its physical parameters (module docstring)."""
     if (S is None) == (chi is None):
         raise ConfigError("a case needs exactly one of S and chi")
@@ -154,7 +162,8 @@ def theory_id(delta, S, seed=0) -> str:
     return f"D{fmt_number(delta)}_S{fmt_number(S)}" + (f"_seed{int(seed)}" if seed else "")
 
 
-def mesh_id(delta, family="icosphere", level=3, n_vertices=None, seed=0, radius=1.0) -> str:
+def mesh_id(delta, family=_MESH_DEFAULTS["family"], level=_MESH_DEFAULTS["level"], n_vertices=None, seed=0,
+            radius=1.0) -> str:
     """Id of a mesh: family, resolution, seed and target Delta (meshes are shared between flow strengths)."""
     if family == "icosphere":
         base = f"icosphere_L{int(level)}"

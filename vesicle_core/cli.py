@@ -11,7 +11,7 @@ import os
 import sys
 
 from .cli_args import int_in as _int_in
-from .errors import ConfigError, VesicleError, check_range
+from .errors import ConfigError, NumericalInstability, VesicleError, check_range
 
 
 class _Parser(argparse.ArgumentParser):
@@ -35,25 +35,29 @@ def _positive_float(name):
 
 # --------------------------------------------------------------------------- mesh
 def _add_mesh(sub):
-    from .mesh import FAMILIES, MAX_ICOSPHERE_LEVEL
-
     p = sub.add_parser("mesh", help="build an ellipsoidal vesicle mesh and write it as netCDF (UGRID)")
     p.add_argument("-o", "--output", required=True, help="output netCDF file")
-    p.add_argument("--family", choices=FAMILIES, default="quasiuniform",
-                   help="mesh family (default: quasiuniform, which has no icosahedral bias; see config/README.md)")
-    p.add_argument("--level", type=_int_in("--level", 0, MAX_ICOSPHERE_LEVEL), default=4,
-                   help=f"icosphere subdivision level in [0, {MAX_ICOSPHERE_LEVEL}] (10*4^level+2 vertices; default 4)")
-    p.add_argument("--n-vertices", type=_int_in("--n-vertices", 12, 20_000_000), default=None,
-                   help="vertex count of the quasi-uniform family (default: that of --level)")
-    p.add_argument("--seed", type=_int_in("--seed", 0, 2**31 - 1), default=0, help="seed of the quasi-uniform family")
-    p.add_argument("--lloyd-steps", type=_int_in("--lloyd-steps", 0, 1000), default=8,
-                   help="Lloyd relaxation steps of the quasi-uniform family (default 8)")
+    # defaults, ranges and help from the parameter table, as the workflow's mesh section has them
+    from .parameters import MESH
+
+    def table_arg(flag, **kw):
+        q = MESH[flag.lstrip("-").replace("-", "_")]
+        if q.kind == "str":
+            kw.update(choices=q.choices)
+        elif q.kind == "int":
+            kw.update(type=_int_in(flag, int(q.lo), int(q.hi)))
+        p.add_argument(flag, default=q.default, help=f"{q.help} ({q.allowed()}; default {q.default})", **kw)
+
+    table_arg("--family")
+    table_arg("--level")
+    table_arg("--n-vertices")
+    table_arg("--seed")
+    table_arg("--lloyd-steps")
     p.add_argument("--axes", type=_positive_float("--axes"), nargs=3, metavar=("A", "B", "C"), default=(1.0, 0.8, 1.0),
                    help="axes ratio a:b:c of the ellipsoid along x, y, z, each > 0 (default 1 0.8 1)")
     p.add_argument("--delta", type=float, default=None,
                    help="target excess area Delta >= 0; solves b in 1:b:1 on this mesh (overrides --axes)")
-    p.add_argument("--radius", type=_positive_float("--radius"), default=1.0,
-                   help="equivalent radius R > 0 (volume = 4/3 pi R^3; default 1, the solver's unit)")
+    table_arg("--radius", type=_positive_float("--radius"))
     p.set_defaults(func=_cmd_mesh)
 
 
@@ -309,6 +313,20 @@ def _cmd_bench(a):
     return 0
 
 
+# --------------------------------------------------------------------------- params
+def _add_params(sub):
+    p = sub.add_parser("params", help="the run (or mesh) parameters: name, unit, allowed values, meaning, default")
+    p.add_argument("--mesh", action="store_true", help="the mesh parameters instead of the run parameters")
+    p.set_defaults(func=_cmd_params)
+
+
+def _cmd_params(a):
+    from .parameters import MESH_PARAMETERS, RUN_PARAMETERS, markdown_table
+
+    print(markdown_table(MESH_PARAMETERS if a.mesh else RUN_PARAMETERS, with_default=True))
+    return 0
+
+
 # --------------------------------------------------------------------------- entry point
 def _post_adders():
     from .cli_post import add_catalog, add_figures
@@ -316,7 +334,7 @@ def _post_adders():
     return [add_figures, add_catalog]
 
 
-_ADDERS = [_add_mesh, _add_run, _add_decompose, _add_theory, _add_fit, _add_report, _add_bench]
+_ADDERS = [_add_mesh, _add_run, _add_decompose, _add_theory, _add_fit, _add_report, _add_bench, _add_params]
 
 
 def build_parser():
@@ -339,7 +357,7 @@ def main(argv=None):
         return args.func(args) or 0
     except VesicleError as exc:
         print(f"vesicle {args.command}: error: {exc}", file=sys.stderr)
-        return 2 if not exc.__class__.__name__ == "NumericalInstability" else 3
+        return 3 if isinstance(exc, NumericalInstability) else 2
 
 
 if __name__ == "__main__":

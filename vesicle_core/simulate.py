@@ -35,7 +35,7 @@ import math
 import os
 import sys
 import time as _time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields, make_dataclass
 from pathlib import Path
 
 import numpy as np
@@ -53,79 +53,22 @@ FAILURE = "failure.nc"
 
 
 # --------------------------------------------------------------------------- configuration
-@dataclass(frozen=True)
-class RunConfig:
-    """Parameters of one IBM run, in solver units (see module docstring). Ranges are checked on creation."""
-
-    chi: float = 67.0  # dimensionless extensional rate gamma_dot mu R^3 / kappa
-    N: int = 32  # grid nodes per axis
-    L: float = 5.0  # periodic box edge [R]
-    Re: float = 0.0  # Reynolds number gamma_dot rho R^2 / mu; 0 = steady Stokes
-    Lambda: float | None = None  # tension modulus of (A5) [kappa/R^2]; None = default_lambda(chi)
-    K_volume: float = 1.0e7  # global volume penalty [kappa/R^3]; holds V without costing dt
-    K_area: float = 0.0  # global area penalty [kappa/R^2]
-    area_model: str = "voronoi"
-    kernel: str = "peskin4"  # regularised delta: "peskin4" (eq. 27), "roma3", "bao6" (kernels.py)
-    scheme: str = "projection"  # "projection" | "explicit" (paper) | "inextensible" (local tension solve)
-    projection_refresh: int = 10  # steps between refreshes of cached mobility data (projection, inextensible)
-    stretch: float = 1.0  # max duration of the forward phase [gamma_dot t]
-    stationary_tol: float = 0.0  # stop stretching when relative shape change per gamma_dot t < tol (0 = never)
-    t_end: float = 3.0  # duration after the reversal [gamma_dot t]
-    dt: float | str = "power"  # "power" | "formula" | a number in tau
-    dt_safety: float = 0.8
-    output_every: float = 0.05  # [gamma_dot t]
-    checkpoint_every: int = 2000  # steps
-    max_drift: float = 0.05  # relative area or volume drift that stops the run
-    backend: str = "numpy"
-    dtype: str = "float64"
-    fft_workers: int = 1
-    cg_tol: float = 1.0e-5  # inextensible: CG tolerance, rms area strain of the residual (50x below sigma/Lambda)
-    cg_maxiter: int = 200  # inextensible: CG iterations before the run stops (NumericalInstability)
-    cg_precond: str = "compliance"  # inextensible: "compliance" (W/Lambda) | "local" (near-field IBM mobility)
-    dt_growth: float = 0.1  # inextensible, adaptive dt: e-folds of the fastest wrinkle per step (flow: /10 strain)
+class _RunConfigRules:
+    """Parameters of one IBM run, in solver units (see module docstring): the fields, defaults and ranges of
+    :data:`vesicle_core.parameters.RUN_PARAMETERS`, checked on creation, plus the rules that tie them together."""
 
     def __post_init__(self):
-        check_range("chi", self.chi, 0.0, 1e7)
-        check_range("N", self.N, 8, 4096, integer=True)
-        if self.N % 2:
-            raise ConfigError(f"N must be even, got {self.N}")
-        check_range("L", self.L, 2.0, None, lo_open=True)
-        check_range("Re", self.Re, 0.0, 10.0)
-        if self.Lambda is not None:
-            check_range("Lambda", self.Lambda, 0.0, 1e12)
-        check_range("K_volume", self.K_volume, 0.0, 1e12)
-        check_range("K_area", self.K_area, 0.0, 1e12)
-        if self.area_model not in B.AREA_MODELS:
-            raise ConfigError(f"area_model must be one of {B.AREA_MODELS}, got {self.area_model!r}")
-        from .kernels import KERNELS
+        from .parameters import RUN_PARAMETERS
 
-        if self.kernel not in KERNELS:
-            raise ConfigError(f"kernel must be one of {tuple(KERNELS)}, got {self.kernel!r}")
-        if self.scheme not in SCHEMES:
-            raise ConfigError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
-        check_range("projection_refresh", self.projection_refresh, 1, 10000, integer=True)
-        check_range("stretch", self.stretch, 0.0, 1e4)
-        check_range("stationary_tol", self.stationary_tol, 0.0, 1.0)
-        check_range("t_end", self.t_end, 0.0, 1e4)
-        if isinstance(self.dt, str):
-            if self.dt not in ("power", "formula"):
-                raise ConfigError(f"dt must be 'power', 'formula' or a number > 0 (tau), got {self.dt!r}")
-        else:
-            check_range("dt", self.dt, 0.0, 1.0, lo_open=True)
-        check_range("dt_safety", self.dt_safety, 0.0, 1.0, lo_open=True)
-        check_range("output_every", self.output_every, 0.0, None, lo_open=True)
-        check_range("checkpoint_every", self.checkpoint_every, 1, None, integer=True)
-        check_range("max_drift", self.max_drift, 0.0, 1.0, lo_open=True)
-        check_range("fft_workers", self.fft_workers, 1, 256, integer=True)
-        check_range("cg_tol", self.cg_tol, 0.0, 1e-2, lo_open=True)
-        check_range("cg_maxiter", self.cg_maxiter, 1, 100000, integer=True)
-        check_range("dt_growth", self.dt_growth, 0.0, 1.0, lo_open=True)
-        if self.cg_precond not in ("compliance", "local"):
-            raise ConfigError(f"cg_precond must be 'compliance' or 'local', got {self.cg_precond!r}")
+        for p in RUN_PARAMETERS:  # a frozen dataclass: store the normalised value (e.g. 128.0 -> 128)
+            object.__setattr__(self, p.name, p.check(getattr(self, p.name)))
         if self.scheme == "inextensible" and self.Re > 0:
             raise ConfigError(f"scheme 'inextensible' solves steady Stokes (Re = 0); got Re = {self.Re:g}")
         if self.chi == 0 and self.stretch > 0:
             raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
+        if self.seed_spectrum != "mesh" and self.stationary_tol > 0:
+            raise ConfigError("seed_spectrum 'thermal' needs a fixed stretch (stationary_tol = 0): the seed goes on "
+                              "the shape before the frame at the reversal")
 
     @property
     def h(self) -> float:
@@ -150,9 +93,6 @@ class RunConfig:
         unknown = sorted(set(d) - names)
         if unknown:
             raise ConfigError(f"unknown run parameter(s) {unknown}; allowed: {sorted(names)}")
-        for k in ("N", "checkpoint_every", "fft_workers", "cg_maxiter", "projection_refresh"):
-            if k in d and isinstance(d[k], float) and d[k].is_integer():
-                d = {**d, k: int(d[k])}
         return cls(**d)
 
     def as_attrs(self) -> dict:
@@ -162,6 +102,20 @@ class RunConfig:
         out["Lambda_eff"] = self.Lambda_eff
         out["h"] = self.h
         return out
+
+
+def _run_config_class():
+    from .parameters import RUN_PARAMETERS
+
+    types = {"float": float, "int": int, "str": str, "bool": bool}
+    spec = [(p.name, types[p.kind] | None if p.nullable else types[p.kind], field(default=p.default))
+            for p in RUN_PARAMETERS]
+    cls = make_dataclass("RunConfig", spec, bases=(_RunConfigRules,), frozen=True)
+    cls.__module__, cls.__doc__ = __name__, _RunConfigRules.__doc__  # so pickle and help() find it here
+    return cls
+
+
+RunConfig = _run_config_class()
 
 
 SCHEMES = ("explicit", "projection", "inextensible")
@@ -374,11 +328,15 @@ class TrajectoryWriter:
     FRAME_VARS = ("t_tau", "tension", "area", "volume", "area_drift", "volume_drift", "bending_energy",
                   "tension_energy", "flow_sign", "dt_tau", "cg_iterations")
 
-    def __init__(self, outdir: Path, faces, n_nodes: int, attrs: dict, resume_frames: int | None):
+    VELOCITY_VARS = ("node_ux", "node_uy", "node_uz")
+
+    def __init__(self, outdir: Path, faces, n_nodes: int, attrs: dict, resume_frames: int | None,
+                 velocity: bool = False):
         self.path = outdir / PARTIAL
         self.faces = np.asarray(faces)
         self.n_nodes = int(n_nodes)
         self.attrs = attrs
+        self.velocity = bool(velocity)
         if resume_frames is None or not self.path.exists():
             self._create()
         else:
@@ -400,6 +358,11 @@ class TrajectoryWriter:
             for name in ("node_x", "node_y", "node_z"):
                 v = nc.createVariable(name, "f8", ("time", "n_node"), zlib=True, complevel=1)
                 v.units = "R"
+            if self.velocity:
+                for name in self.VELOCITY_VARS:
+                    v = nc.createVariable(name, "f8", ("time", "n_node"), zlib=True, complevel=1)
+                    v.units = "R/tau"
+                    v.long_name = "membrane velocity dX/dt of the step taken from this frame (background flow included)"
             v = nc.createVariable("face_tension", "f4", ("time", "n_face"), zlib=True, complevel=1)
             v.units = "kappa/R^2"
             v.long_name = "local surface tension per triangle (penalty Lambda (A_l - A_l0)/A_l0, or the solved tension)"
@@ -438,6 +401,15 @@ class TrajectoryWriter:
             nc["face_tension"][i, :] = face_tension
             for k in self.FRAME_VARS:
                 nc[k][i] = scalars[k]
+
+    def set_velocity(self, U):
+        """The velocity of the last frame written: the step from it is only known after the frame."""
+        import netCDF4
+
+        with netCDF4.Dataset(self.path, "a") as nc:
+            i = nc.dimensions["time"].size - 1
+            for c, name in enumerate(self.VELOCITY_VARS):
+                nc[name][i, :] = U[:, c]
 
     def finalize(self, t_reverse_tau: float, chi: float, extra_attrs: dict) -> Path:
         """Add the time coordinate gamma_dot (t - t_reverse), mark complete, and move to trajectory.nc."""
@@ -508,8 +480,11 @@ class _Progress:
             self.bar.close()
 
 
-def _reverse(state: State, bar, relax_steps, cfg: RunConfig, stationary: bool):
-    """Flip the background flow (Fig. 1): the reversal time t0 is the current time."""
+def _reverse(state: State, bar, relax_steps, cfg: RunConfig, stationary: bool, on_reverse=None):
+    """Flip the background flow (Fig. 1): the reversal time t0 is the current time. ``on_reverse(state)`` runs
+    first (the wrinkle seed)."""
+    if on_reverse is not None:
+        on_reverse(state)
     state.phase, state.t_reverse = "relax", state.t
     if relax_steps is not None:  # step-count progress; adaptive runs count simulated time instead
         bar.total = state.step + relax_steps
@@ -537,6 +512,23 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
     mem = solver.membrane
     A0, V0 = mem.ref.area, mem.ref.volume
     T = cfg.time_scale()
+
+    seed_info = {}
+
+    def seed_shape(state):
+        """The thermal wrinkle seed at the reversal (seeding.py); mesh noise only by default."""
+        if cfg.seed_spectrum != "thermal":
+            return
+        from .seeding import thermal_seed
+        from .units import S_from_chi
+
+        S = S_from_chi(cfg.chi, float(mesh.excess_area())) if cfg.chi > 0 else 0.0
+        X_new, l_seed = thermal_seed(be.asnumpy(state.X), mesh.faces, delta=float(mesh.excess_area()), S=S,
+                                     seed=cfg.seed, scale=cfg.seed_scale)
+        state.X = xp.asarray(X_new, dtype=xp.float64)
+        seed_info["seed_l_max"] = l_seed
+        log.info("thermal wrinkle seed (x%g k_B T, seed %d) on 3 <= l <= %d at the reversal", cfg.seed_scale, cfg.seed,
+                 l_seed)
 
     resumed = ckpt.exists()
     if resumed:
@@ -570,6 +562,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         state.dt = dt
         state.shape_prev = _shape_moments(state.X, xp)
         if cfg.stretch == 0:
+            seed_shape(state)
             state.phase, state.t_reverse = "relax", 0.0
 
     from .integrators import SCHEMES as INTEGRATORS
@@ -600,7 +593,8 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         attrs["S"] = S_from_chi(cfg.chi, attrs["delta"])
     attrs = {k: (str(v) if isinstance(v, bool) else v) for k, v in attrs.items()}
 
-    writer = TrajectoryWriter(outdir, mesh.faces, mesh.n_vertices, attrs, state.n_frames if resumed else None)
+    writer = TrajectoryWriter(outdir, mesh.faces, mesh.n_vertices, attrs, state.n_frames if resumed else None,
+                              velocity=cfg.store_velocity)
 
     if adaptive:  # progress in per mille of the simulated time
         total_est = 1000
@@ -655,10 +649,9 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
     dt_step = 0.0 if adaptive else dt  # the step that led to the frame (none before the first)
     try:
         while True:
-            X = state.X
             if adaptive:
                 if state.phase == "stretch" and state.t >= t_stretch_end - eps_t:
-                    _reverse(state, bar, None, cfg, stationary=False)
+                    _reverse(state, bar, None, cfg, stationary=False, on_reverse=seed_shape)
                     state.next_output_t = state.t
                 done = state.phase == "relax" and state.t >= state.t_reverse + cfg.t_end * T - eps_t
                 if done:
@@ -667,12 +660,13 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
             else:
                 # phase changes depend on the step count only, so a resumed run takes them at the same steps
                 if state.phase == "stretch" and state.step >= stretch_steps:
-                    _reverse(state, bar, relax_steps, cfg, stationary=False)
+                    _reverse(state, bar, relax_steps, cfg, stationary=False, on_reverse=seed_shape)
                     state.next_output = state.step  # a frame at t0 exactly; later frames every output_every
                 done = state.phase == "relax" and state.t - state.t_reverse >= cfg.t_end * T - 0.5 * dt
                 if done:
                     state.next_output = state.step  # the last frame is always written
                 output_due = state.step == state.next_output
+            X = state.X  # the reversal may have seeded the shape
             F, geo = solver.forces(X)
             if output_due:
                 sc = frame(X, F, geo, dt_step)
@@ -694,9 +688,12 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
                     if rate < cfg.stationary_tol:
                         _reverse(state, bar, None if adaptive else relax_steps, cfg, stationary=True)  # frame at t0
                         state.next_output_t = next_frame_time()
-            if done:
-                break
             rate = cfg.chi * (1.0 if state.phase == "stretch" else -1.0)
+            if done:
+                if cfg.store_velocity:  # the velocity at the last frame: one step computed, not taken
+                    dt_last = dt_step if dt_step > 0 else dt
+                    writer.set_velocity(be.asnumpy(integ.step(state, X, F, geo, dt_last, rate)) / dt_last)
+                break
             if adaptive:
                 # land exactly on the next frame, the reversal or the end, in equal steps
                 t_event = state.next_output_t
@@ -710,6 +707,8 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
             else:
                 dt_step = dt
             dX = integ.step(state, X, F, geo, dt_step, rate)
+            if output_due and cfg.store_velocity:
+                writer.set_velocity(be.asnumpy(dX) / dt_step)
             state.X = X + dX
             state.step += 1
             state.t = state.t + dt_step
@@ -733,7 +732,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         raise
     bar.close()
     wall = _time.perf_counter() - wall0
-    extra = {**integ.stats(), "steps": state.step, "wall_time_s_last_call": wall,
+    extra = {**integ.stats(), **seed_info, "steps": state.step, "wall_time_s_last_call": wall,
              "t_reverse_tau": state.t_reverse, "t_reverse_gamma": state.t_reverse * cfg.chi, "resumed": int(resumed)}
     if adaptive and state.step > 0:  # the mean step (each frame stores its own in dt_tau)
         extra.update(dt_tau=state.t / state.step, dt_gamma=cfg.chi * state.t / state.step, dt_bending_tau=dt)

@@ -14,12 +14,17 @@ from vesicle_core.catalog import mesh_id as _mesh_id
 from vesicle_core.catalog import theory_id as _theory_id
 from vesicle_core.units import S_from_chi, chi_from_S
 
-# the order in which run parameters are passed to `vesicle run --set`
-RUN_KEYS = (
-    "N", "L", "Re", "Lambda", "K_volume", "K_area", "area_model", "kernel", "scheme", "projection_refresh",
-    "stretch", "stationary_tol", "t_end", "dt", "dt_safety", "output_every", "checkpoint_every", "max_drift",
-    "backend", "dtype", "fft_workers", "cg_tol", "cg_maxiter", "cg_precond", "dt_growth",
-)
+# run and mesh parameters: names and defaults from their one table (vesicle_core/parameters.py)
+from vesicle_core.parameters import MESH_PARAMETERS, RUN_PARAMETERS
+from vesicle_core.parameters import WORKFLOW_RUN_KEYS as RUN_KEYS
+from vesicle_core.parameters import defaults as _defaults
+
+
+def fill_defaults(cfg):
+    """The run and mesh sections with the table's defaults under the config's values (the schema has none)."""
+    cfg["run"] = {**_defaults(RUN_PARAMETERS, workflow_only=True), **cfg.get("run", {})}
+    cfg["mesh"] = {**_defaults(MESH_PARAMETERS), **cfg.get("mesh", {})}
+    return cfg
 
 
 def _plain(value):
@@ -82,7 +87,7 @@ def build_sweep(cfg):
     return cases, meshes, theories
 
 
-CASES, MESHES, THEORIES = build_sweep(config)
+CASES, MESHES, THEORIES = build_sweep(fill_defaults(config))
 
 
 def _alternation(ids):
@@ -101,14 +106,12 @@ def case_value(key):
     return lambda wildcards: CASES[wildcards.case_id][key]
 
 
-def run_value(key):
-    """params: accessor of one run parameter of the case; None becomes YAML's null for `--set KEY=null`."""
+def case_run_yaml(wildcards):
+    """params: every run parameter of the case (chi included) as the YAML text of `vesicle run -c`."""
+    import yaml
 
-    def get(wildcards):
-        v = CASES[wildcards.case_id]["run"][key]
-        return "null" if v is None else v
-
-    return get
+    case = CASES[wildcards.case_id]
+    return yaml.safe_dump({"chi": case["chi"], **case["run"]}, sort_keys=False)
 
 
 def mesh_value(key):

@@ -1,7 +1,7 @@
 # IBM runs: one job per case. `vesicle run` checkpoints into the run directory and resumes when the job is
 # restarted (checkpoint.nc and trajectory.partial.nc are not outputs, so Snakemake leaves them alone); the
-# trajectory appears only when the run is complete. Every run parameter is passed explicitly, so a change of
-# any of them in the config reruns exactly the cases it applies to.
+# trajectory appears only when the run is complete. Every run parameter is in the rule's params (run.yaml), so a
+# change of any of them in the config reruns exactly the cases it applies to.
 #
 # Benchmark or cache: Snakemake refuses a rule that has both a benchmark and a cache directive (a result taken
 # from the cache has no timing to put in the benchmark file). So `simulate` is defined with
@@ -13,22 +13,14 @@ SIMULATE_CACHED = _caching_requested("simulate")
 
 SIMULATE_PARAMS = dict(
     outdir=lambda wildcards, output: os.path.dirname(output.trajectory),
-    chi=case_value("chi"),
-    **{key: run_value(key) for key in RUN_KEYS},
+    case=case_run_yaml,
 )
 
+# the case's parameters go to `vesicle run` as one file, run.yaml, kept in the run directory: the same command
+# reruns the case by hand (`vesicle run <mesh> -o <dir> -c <dir>/run.yaml`)
 SIMULATE_SHELL = (
-    "vesicle run {input.mesh} -o {params.outdir} --quiet --set chi={params.chi}"
-    " --set N={params.N} --set L={params.L} --set Re={params.Re}"
-    " --set Lambda={params.Lambda} --set K_volume={params.K_volume} --set K_area={params.K_area}"
-    " --set area_model={params.area_model} --set kernel={params.kernel} --set scheme={params.scheme}"
-    " --set projection_refresh={params.projection_refresh} --set stretch={params.stretch}"
-    " --set stationary_tol={params.stationary_tol} --set t_end={params.t_end} --set dt={params.dt}"
-    " --set dt_safety={params.dt_safety} --set output_every={params.output_every}"
-    " --set checkpoint_every={params.checkpoint_every} --set max_drift={params.max_drift}"
-    " --set backend={params.backend} --set dtype={params.dtype} --set fft_workers={params.fft_workers}"
-    " --set cg_tol={params.cg_tol} --set cg_maxiter={params.cg_maxiter} --set cg_precond={params.cg_precond}"
-    " --set dt_growth={params.dt_growth}"
+    "printf '%s' {params.case:q} > {params.outdir}/run.yaml"
+    " && vesicle run {input.mesh} -o {params.outdir} --quiet -c {params.outdir}/run.yaml"
     " > {log} 2>&1"
 )
 
