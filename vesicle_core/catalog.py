@@ -77,7 +77,7 @@ import json
 import math
 import os
 import re
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -262,7 +262,7 @@ def _created(attrs, path: Path) -> str:
             return datetime.fromisoformat(stamp).isoformat(timespec="seconds")
         except ValueError:
             pass
-    return datetime.fromtimestamp(path.stat().st_mtime, timezone.utc).isoformat(timespec="seconds")
+    return datetime.fromtimestamp(path.stat().st_mtime, UTC).isoformat(timespec="seconds")
 
 
 def _package_version(attrs) -> str:

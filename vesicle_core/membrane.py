@@ -288,7 +288,7 @@ class Membrane:
             raise ConfigError(f"area_model must be one of {AREA_MODELS}, got {self.area_model!r}")
 
     @classmethod
-    def from_mesh(cls, X, faces, xp=np, **params) -> "Membrane":
+    def from_mesh(cls, X, faces, xp=np, **params) -> Membrane:
         X = xp.asarray(X)
         topo = Topology(faces, X.shape[0], xp)
         return cls(topo, reference(X, topo), **params)

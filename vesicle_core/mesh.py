@@ -57,7 +57,7 @@ class Mesh:
     def quality(self) -> dict:
         return mesh_quality(self.vertices, self.faces)
 
-    def check(self) -> "Mesh":
+    def check(self) -> Mesh:
         check_closed_surface(self.vertices, self.faces)
         return self
 
