@@ -605,7 +605,7 @@ def select_rows(rows, columns, where: dict, source="catalog") -> list[dict]:
             for w in values:
                 hit |= (text == ("" if w is None else w)).to_numpy(dtype=bool)
         mask &= hit
-    return [r for r, keep in zip(rows, mask) if keep]
+    return [r for r, keep in zip(rows, mask, strict=True) if keep]
 
 
 _TIME_SERIES_DROP_DIMS = ("m", "theta", "phi", "axis", "principal")
@@ -699,7 +699,7 @@ def open_sweep(path, kind: str = "spectra", time=None, **where):
             dss.append(ds.load())
     grid = _common_time(dss, time)
     parts = []
-    for r, ds in zip(rows, dss):
+    for r, ds in zip(rows, dss, strict=True):
         red = _reduce_one(ds, grid, kind)
         meta = {"case_id": r["case_id"], "path": r["abspath"], "chi": r["chi"]}
         for c in INTEGER_COLUMNS:

@@ -433,7 +433,8 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
         # are fitted separately
         N = int(ds.attrs.get("N", 0)) if kind == "simulation" else 0
         nv = int(ds.attrs.get("mesh_n_vertices", ds.attrs.get("n_node", 0))) if kind == "simulation" else 0
-        row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv, "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
+        row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv,
+               "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
                "l_star": float(ds["l_star"]), "l_peak": float(ds["l_peak"]) if "l_peak" in ds else math.nan,
                "t_star": float(ds["t_star"]), "decay_exponent": math.nan, "decay_ci_low": math.nan,
                "decay_ci_high": math.nan, "t_stage2_start": math.nan, "t_stage2_end": math.nan, "note": ""}
@@ -467,7 +468,7 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
             pts = [(r["S"], r[name]) for r in sel if np.isfinite(r[name]) and r[name] > 0]
             fit = None
             if len(pts) >= min_points:
-                x, y = map(np.asarray, zip(*pts))
+                x, y = map(np.asarray, zip(*pts, strict=True))
                 fit = fit_power_law(x, y, confidence)
             for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
                 gdata[f"{name}_{k}"].append(getattr(fit, k) if fit is not None else math.nan)
