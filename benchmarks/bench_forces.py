@@ -39,8 +39,8 @@ def main():
         X = m.vertices * 1.001
         for model in B.AREA_MODELS:
             mem = B.Membrane.from_mesh(m.vertices, m.faces, Lambda=1e6, K_volume=1e5, area_model=model)
-            tf = median_time(lambda: mem.forces(X), a.repeats)
-            tg = median_time(lambda: X[m.faces], a.repeats)
+            tf = median_time(lambda mem=mem, X=X: mem.forces(X), a.repeats)
+            tg = median_time(lambda X=X, faces=m.faces: X[faces], a.repeats)
             print(f"{level:>5} {m.n_vertices:>9} {model:>12} {tf * 1e3:>10.2f} {tg * 1e3:>10.3f} {tf / tg:>6.0f}")
 
 

@@ -72,7 +72,8 @@ def one(scheme, mesh, a, outdir):
     spec = spectra_from_trajectory(ds)
     row = {
         "scheme": scheme, "steps": int(ds.attrs["steps"]), "stokes_solves": ds.attrs.get("stokes_solves", np.nan),
-        "cg_median": ds.attrs.get("cg_iterations_median", np.nan), "cg_mean": ds.attrs.get("cg_iterations_mean", np.nan),
+        "cg_median": ds.attrs.get("cg_iterations_median", np.nan),
+        "cg_mean": ds.attrs.get("cg_iterations_mean", np.nan),
         "cg_max": ds.attrs.get("cg_iterations_max", np.nan), "wall_s": wall, "Lambda": ds.attrs["Lambda_eff"],
         "max_volume_drift": float(np.abs(ds.volume_drift).max()), **inextensibility(ds),
         "l_star": float(spec.l_star), "l_peak": float(spec.l_peak), "t_star": float(spec.t_star),

@@ -28,7 +28,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import gc  # noqa: E402
-import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -37,6 +36,34 @@ from vesicle_core.bench import interleaved_ms  # noqa: E402
 from vesicle_core.ibm import Coupler, Grid  # noqa: E402
 from vesicle_core.mesh import make_vesicle  # noqa: E402
 from vesicle_core.stokes import StokesSolver  # noqa: E402
+
+
+def _stages(be, grid, solver, unsteady, cp, ubuf, fbuf, chat, X, F):
+    """The timed callables for one grid and mesh: closures over this call's arguments only, so that each
+    binds its own size's buffers and mesh (not the loop variables of main) and main can free them."""
+    cp.prepare(X)
+    f = cp.spread(F)
+    u = solver.velocity(f, out=ubuf)
+
+    def bare_fft():
+        be.rfftn(fbuf, (1, 2, 3), out=chat)
+        be.irfftn(chat, grid.shape, (1, 2, 3), out=ubuf, overwrite_x=True, norm="forward")
+
+    def whole():
+        cp.prepare(X)
+        ff = cp.spread(F)
+        uu = solver.velocity(ff, out=ubuf)
+        return cp.interpolate(uu)
+
+    return {
+        "fft": bare_fft,
+        "prepare": lambda: cp.prepare(X),
+        "spread": lambda: cp.spread(F),
+        "solve": lambda: solver.velocity(f, out=ubuf),
+        "interp": lambda: cp.interpolate(u),
+        "step": whole,
+        "unsteady": lambda: unsteady.step(f, 1e-6, out=ubuf),
+    }
 
 
 def main(argv=None):
@@ -76,33 +103,11 @@ def main(argv=None):
         fbuf[...] = rng.standard_normal(grid.field_shape)
         chat = be.empty((3,) + grid.spectral_shape, be.complex_dtype)
 
-        def bare_fft():
-            be.rfftn(fbuf, (1, 2, 3), out=chat)
-            be.irfftn(chat, grid.shape, (1, 2, 3), out=ubuf, overwrite_x=True, norm="forward")
-
-        for lev, (V, edge) in meshes.items():
+        for V, edge in meshes.values():
             X = V + 1e-3 * rng.standard_normal(V.shape)
             F = rng.standard_normal(V.shape)
             F -= F.mean(axis=0)
-            cp.prepare(X)
-            f = cp.spread(F)
-            u = solver.velocity(f, out=ubuf)
-
-            def whole():
-                cp.prepare(X)
-                ff = cp.spread(F)
-                uu = solver.velocity(ff, out=ubuf)
-                return cp.interpolate(uu)
-
-            fns = {
-                "fft": bare_fft,
-                "prepare": lambda: cp.prepare(X),
-                "spread": lambda: cp.spread(F),
-                "solve": lambda: solver.velocity(f, out=ubuf),
-                "interp": lambda: cp.interpolate(u),
-                "step": whole,
-                "unsteady": lambda: unsteady.step(f, 1e-6, out=ubuf),
-            }
+            fns = _stages(be, grid, solver, unsteady, cp, ubuf, fbuf, chat, X, F)
             med, mn = interleaved_ms(fns, reps)
             total = med["prepare"] + med["spread"] + med["solve"] + med["interp"]
             print(f"{N:>4} {len(V):>6} {edge / grid.h:>6.2f} | {med['fft']:>8.2f} {med['prepare']:>8.2f} "
@@ -110,7 +115,7 @@ def main(argv=None):
                   f"{total / med['fft']:>6.2f} | {med['step']:>8.2f} {med['step'] / med['fft']:>6.2f} | "
                   f"{med['unsteady']:>8.2f} | {mn['fft']:>8.2f} {mn['step']:>8.2f} {mn['step'] / mn['fft']:>6.2f}",
                   flush=True)
-        del solver, unsteady, cp, ubuf, fbuf, chat
+        del solver, unsteady, cp, ubuf, fbuf, chat, fns  # fns: its closures hold the buffers too
         gc.collect()
 
 

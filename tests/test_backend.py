@@ -138,7 +138,7 @@ def test_scatter_add_accumulates_duplicates():
     vals = np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
     be.scatter_add(out, idx, vals)
     expected = np.zeros(10)
-    for i, v in zip(idx, vals):
+    for i, v in zip(idx, vals, strict=True):
         expected[i] += v
     np.testing.assert_array_equal(out, expected)
     np.testing.assert_array_equal(be.bincount(idx, vals, 10), expected)

@@ -8,7 +8,6 @@ import pytest
 from vesicle_core import fits as F
 from vesicle_core.errors import ConfigError
 
-
 # --------------------------------------------------------------------------- fit_power_law
 
 

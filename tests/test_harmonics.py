@@ -129,7 +129,10 @@ def test_smooth_ellipsoid_has_no_spurious_wrinkles():
 def test_delta_l_invariant_under_rotation_about_z(sphere5):
     v, f, th, ph = sphere5
     L, eps, alpha = 16, 0.01, 0.7
-    shape = lambda p: 0.02 * _mode(2, 2, "re", th, p) + eps * _mode(7, 3, "im", th, p) + eps * _mode(12, 5, "re", th, p)
+
+    def shape(p):
+        return 0.02 * _mode(2, 2, "re", th, p) + eps * _mode(7, 3, "im", th, p) + eps * _mode(12, 5, "re", th, p)
+
     u0 = H.decompose(v * (1 + shape(ph))[:, None], f, L, 1.0)
     u1 = H.decompose(v * (1 + shape(ph - alpha))[:, None], f, L, 1.0)  # shape rotated by alpha, mesh fixed
     D0, D1 = H.delta_l(u0), H.delta_l(u1)

@@ -160,7 +160,7 @@ def test_coupler_reuses_buffers_and_matches_functional_api(be):
     rng = np.random.default_rng(7)
     cp = Coupler(g, be)
     ids = None
-    for step in range(3):
+    for _ in range(3):
         X = _points(rng, 60, g.L)
         F = rng.standard_normal((60, 3))
         u = rng.standard_normal(g.field_shape)

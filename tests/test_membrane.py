@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from vesicle_core import mesh as M
 from vesicle_core import membrane as B
+from vesicle_core import mesh as M
 
 FAMILIES = [("icosphere", dict(level=2)), ("quasiuniform", dict(n_vertices=162, seed=1))]
 

@@ -1,4 +1,5 @@
 import math
+from itertools import pairwise
 
 import numpy as np
 import pytest
@@ -50,7 +51,7 @@ def test_target_delta_solves_axes():
 
 def test_excess_area_of_sphere_tends_to_zero():
     d = [M.make_vesicle("icosphere", level=L, axes=(1, 1, 1)).excess_area() for L in (2, 3, 4, 5)]
-    assert all(x > y > 0 for x, y in zip(d, d[1:]))
+    assert all(x > y > 0 for x, y in pairwise(d))
     assert d[-1] < 0.01
 
 

@@ -59,8 +59,8 @@ def spectra_like(S=553.0, delta=0.116, kind="spectra", n_time=60, l_max=16, maps
         if maps:
             th = (np.arange(8) + 0.5) * np.pi / 8
             ph = -np.pi + (np.arange(16) + 0.5) * 2 * np.pi / 16
-            data["A_p_map"] = (("time", "theta", "phi"),
-                               1e-2 * np.sin(3 * th)[None, :, None] * np.cos(2 * ph)[None, None, :] * np.ones((n_time, 1, 1)))
+            data["A_p_map"] = (("time", "theta", "phi"), 1e-2 * np.sin(3 * th)[None, :, None]
+                               * np.cos(2 * ph)[None, None, :] * np.ones((n_time, 1, 1)))
             coords.update(theta=th, phi=ph)
     attrs = {"delta": delta, "S": S, "chi": 66.7, "N": 32}
     return xr.Dataset(data, coords=coords, attrs=attrs)

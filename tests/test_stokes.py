@@ -1,5 +1,7 @@
 """Periodic Stokes solver, eqs. (17)-(23) and (29)."""
 
+from itertools import pairwise
+
 import numpy as np
 import pytest
 
@@ -200,7 +202,7 @@ def test_exponential_update_matches_single_mode_ode(layout, rho, dt):
     s = StokesSolver(g, be, rho_bar=rho, interleave=interleave)
     t = 0.0
     amp_inf = f0 / lam
-    for n in range(4):
+    for _ in range(4):
         G = s.step(f, dt)
         t1 = t + dt
         # a(t) = amp_inf (1 - e^{-a t}); Gamma = int_t^t1 a(s) ds
@@ -226,7 +228,7 @@ def test_finite_density_tends_to_steady(be):
         errs.append(np.abs(G / dt - steady).max() / np.abs(steady).max())
     # the lag is ~ rho / (lam dt) for the slowest mode, so the error falls ~ linearly with rho
     assert errs[-1] < 1e-8
-    assert all(e2 < e1 for e1, e2 in zip(errs, errs[1:]))
+    assert all(e2 < e1 for e1, e2 in pairwise(errs))
 
 
 def test_state_roundtrip_and_reset(be):

@@ -5,9 +5,9 @@ import pytest
 import xarray as xr
 
 from vesicle_core import mesh as M
+from vesicle_core.datasets import spectra_from_trajectory
 from vesicle_core.simulate import RunConfig, run
 from vesicle_core.theory import run_theory
-from vesicle_core.datasets import spectra_from_trajectory
 from vesicle_core.validation import box_comparison, collect, render, stage1_growth
 
 

@@ -6,7 +6,8 @@ bending modulus kappa = 1, so time is measured in tau = mu R^3 / kappa and the
 elongational rate of the background flow equals chi = gamma_dot tau.
 """
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 try:
     __version__ = _version("vesicle-wrinkling")

@@ -213,7 +213,7 @@ class Backend:
             obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_FORWARD",
                               flags=(effort,), threads=self.fft_workers)
         else:
-            for ax, n in zip(axes, s):
+            for ax, n in zip(axes, s, strict=True):
                 out_shape[ax] = n
             ain = pyfftw.empty_aligned(in_shape, dtype=cdt)
             aout = pyfftw.empty_aligned(tuple(out_shape), dtype=rdt)

@@ -77,7 +77,7 @@ import json
 import math
 import os
 import re
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -271,7 +271,7 @@ def _created(attrs, path: Path) -> str:
             return datetime.fromisoformat(stamp).isoformat(timespec="seconds")
         except ValueError:
             pass
-    return datetime.fromtimestamp(path.stat().st_mtime, timezone.utc).isoformat(timespec="seconds")
+    return datetime.fromtimestamp(path.stat().st_mtime, UTC).isoformat(timespec="seconds")
 
 
 def _package_version(attrs) -> str:
@@ -614,7 +614,7 @@ def select_rows(rows, columns, where: dict, source="catalog") -> list[dict]:
             for w in values:
                 hit |= (text == ("" if w is None else w)).to_numpy(dtype=bool)
         mask &= hit
-    return [r for r, keep in zip(rows, mask) if keep]
+    return [r for r, keep in zip(rows, mask, strict=True) if keep]
 
 
 _TIME_SERIES_DROP_DIMS = ("m", "theta", "phi", "axis", "principal")
@@ -708,7 +708,7 @@ def open_sweep(path, kind: str = "spectra", time=None, **where):
             dss.append(ds.load())
     grid = _common_time(dss, time)
     parts = []
-    for r, ds in zip(rows, dss):
+    for r, ds in zip(rows, dss, strict=True):
         red = _reduce_one(ds, grid, kind)
         meta = {"case_id": r["case_id"], "path": r["abspath"], "chi": r["chi"]}
         for c in INTEGER_COLUMNS:

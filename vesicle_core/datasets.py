@@ -21,7 +21,7 @@ import math
 import shlex
 import sys
 import warnings
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from numbers import Number
 from pathlib import Path
 
@@ -127,7 +127,7 @@ def cf_attrs(title: str, command: str | None = None, **params) -> dict:
     run parameter, converted to netCDF-safe values (bool -> 0/1, None -> "none", nested dicts flattened)."""
     if command is None:
         command = shlex.join([Path(sys.argv[0]).name if sys.argv and sys.argv[0] else "python", *sys.argv[1:]])
-    stamp = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    stamp = datetime.now(UTC).isoformat(timespec="seconds")
     attrs = {
         "Conventions": "CF-1.10",
         "title": str(title),

@@ -2,7 +2,8 @@
 
 Power laws
 ----------
-:func:`fit_power_law` fits ``y = prefactor * x**exponent`` by ordinary least squares of ``ln y`` on ``ln x``.
+:func:`fit_power_law` fits ``y = prefactor * x**exponent`` by ordinary least squares of ``ln y`` on ``ln x``
+(``scipy.stats.linregress``).
 Intervals are the classical Student-t intervals of simple linear regression with ``n - 2`` degrees of freedom,
 ``exponent +- t_{(1+c)/2, n-2} * stderr`` with ``stderr = sqrt(SSR / (n-2) / sum (ln x - mean ln x)^2)``; they
 assume independent, homoscedastic errors in ``ln y`` (multiplicative noise in ``y``). Uses: l_* ~ S^b (Fig. 4),
@@ -157,26 +158,25 @@ def fit_power_law(x, y, confidence: float = 0.95) -> PowerLawFit:
                 f"a power-law fit needs positive {name}; {bad.size} value(s) are <= 0 "
                 f"(first at index {bad[0]}: {a[bad[0]]!r}); fit |{name}| or shift the data first"
             )
-    X = np.log(x)
-    Y = np.log(y)
-    xm, ym = X.mean(), Y.mean()
-    dx, dy = X - xm, Y - ym
-    sxx = float(dx @ dx)
-    if not sxx > 0 or sxx < 1e-24 * max(1.0, float(X @ X)):
-        raise ConfigError("all x values are equal: the exponent is undetermined")
-    b = float(dx @ dy) / sxx
-    a = ym - b * xm
-    resid = dy - b * dx
-    ssr = float(resid @ resid)
-    syy = float(dy @ dy)
-    dof = n - 2
-    s2 = ssr / dof
-    se_b = math.sqrt(s2 / sxx)
-    se_a = math.sqrt(s2 * (1.0 / n + xm * xm / sxx))
     from scipy import stats
 
-    tcrit = float(stats.t.ppf(0.5 * (1.0 + confidence), dof))
-    r2 = 1.0 - ssr / syy if syy > 0 else 1.0
+    X = np.log(x)
+    Y = np.log(y)
+    xm = X.mean()
+    sxx = float((X - xm) @ (X - xm))
+    if not sxx > 0 or sxx < 1e-24 * max(1.0, float(X @ X)):
+        raise ConfigError("all x values are equal: the exponent is undetermined")
+    reg = stats.linregress(X, Y)
+    b, a = float(reg.slope), float(reg.intercept)
+    # standard errors from the residuals, as linregress defines them; its own stderr, sqrt((1 - r^2) syy / sxx / dof),
+    # loses its digits as r -> 1 (1e-8 instead of 1e-16 on an exact power law)
+    resid = Y - (a + b * X)
+    dof = n - 2
+    s2 = float(resid @ resid) / dof
+    se_b = math.sqrt(s2 / sxx)
+    se_a = se_b * math.sqrt(sxx / n + xm * xm)  # linregress's intercept_stderr
+    tcrit = float(stats.t.ppf(0.5 * (1.0 + confidence), dof))  # Student-t, two-sided at `confidence`
+    r2 = float(reg.rvalue) ** 2 if np.ptp(Y) > 0 else 1.0  # a constant y is fitted exactly (linregress: r = 0)
     return PowerLawFit(
         exponent=b,
         prefactor=math.exp(a),
@@ -433,7 +433,8 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
         # are fitted separately
         N = int(ds.attrs.get("N", 0)) if kind == "simulation" else 0
         nv = int(ds.attrs.get("mesh_n_vertices", ds.attrs.get("n_node", 0))) if kind == "simulation" else 0
-        row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv, "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
+        row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv,
+               "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
                "l_star": float(ds["l_star"]), "l_peak": float(ds["l_peak"]) if "l_peak" in ds else math.nan,
                "t_star": float(ds["t_star"]), "decay_exponent": math.nan, "decay_ci_low": math.nan,
                "decay_ci_high": math.nan, "t_stage2_start": math.nan, "t_stage2_end": math.nan, "note": ""}
@@ -467,7 +468,7 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
             pts = [(r["S"], r[name]) for r in sel if np.isfinite(r[name]) and r[name] > 0]
             fit = None
             if len(pts) >= min_points:
-                x, y = map(np.asarray, zip(*pts))
+                x, y = map(np.asarray, zip(*pts, strict=True))
                 fit = fit_power_law(x, y, confidence)
             for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
                 gdata[f"{name}_{k}"].append(getattr(fit, k) if fit is not None else math.nan)

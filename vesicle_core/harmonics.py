@@ -764,7 +764,8 @@ def mesh_bias(vertices, faces, ellipsoid, Delta_tilde_l=None) -> dict:
     dirs = c / np.linalg.norm(c, axis=1, keepdims=True)
     ico = np.unique(np.argmax(dirs @ icosahedron_directions().T, axis=0))
     out = {
-        "defect_amplitude_ratio": math.sqrt(float(np.mean(ap[defects] ** 2))) / rms if defects.any() and rms > 0 else math.nan,
+        "defect_amplitude_ratio": (math.sqrt(float(np.mean(ap[defects] ** 2))) / rms
+                                   if defects.any() and rms > 0 else math.nan),
         "icosahedral_amplitude_ratio": math.sqrt(float(np.mean(ap[ico] ** 2))) / rms if rms > 0 else math.nan,
         "n_defects": int(defects.sum()),
         "icosahedral_power_ratio": math.nan,

@@ -13,7 +13,8 @@ Discrete energies (lengths in R, energies in kappa unless kappa is given):
   Both models are kept (``area_model``); E_b -> 8 pi kappa on a refined sphere with either.
 * area penalty, eq. (A5):   E_sigma = Lambda/2 sum_l (A_l - A_l^0)^2 / A_l^0
 * optional global penalties (not in the paper; they hold the totals without stiffening the
-  time step: a volume penalty of 1e7 did not lower the power-iteration step limit): K_V/2 (V - V0)^2 / V0 and K_A/2 (A - A0)^2 / A0.
+  time step: a volume penalty of 1e7 did not lower the power-iteration step limit):
+  K_V/2 (V - V0)^2 / V0 and K_A/2 (A - A0)^2 / A0.
 
 Forces are the *exact* negative gradients of these discrete energies (eq. 4), derived with the
 chain rule and written per triangle corner, so F = -grad E holds to round-off (checked by finite
@@ -288,7 +289,7 @@ class Membrane:
             raise ConfigError(f"area_model must be one of {AREA_MODELS}, got {self.area_model!r}")
 
     @classmethod
-    def from_mesh(cls, X, faces, xp=np, **params) -> "Membrane":
+    def from_mesh(cls, X, faces, xp=np, **params) -> Membrane:
         X = xp.asarray(X)
         topo = Topology(faces, X.shape[0], xp)
         return cls(topo, reference(X, topo), **params)

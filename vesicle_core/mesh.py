@@ -57,7 +57,7 @@ class Mesh:
     def quality(self) -> dict:
         return mesh_quality(self.vertices, self.faces)
 
-    def check(self) -> "Mesh":
+    def check(self) -> Mesh:
         check_closed_surface(self.vertices, self.faces)
         return self
 
@@ -184,9 +184,10 @@ def _subdivide(v, f):
     m = inv.reshape(3, nf).T + len(v)  # midpoint index of edges (01, 12, 20)
     a, b, c = f[:, 0], f[:, 1], f[:, 2]
     m01, m12, m20 = m[:, 0], m[:, 1], m[:, 2]
-    new_f = np.concatenate(
-        [np.stack([a, m01, m20], 1), np.stack([b, m12, m01], 1), np.stack([c, m20, m12], 1), np.stack([m01, m12, m20], 1)]
-    )
+    new_f = np.concatenate([
+        np.stack([a, m01, m20], 1), np.stack([b, m12, m01], 1),
+        np.stack([c, m20, m12], 1), np.stack([m01, m12, m20], 1),
+    ])
     return np.vstack([v, mid]), new_f
 
 
@@ -241,7 +242,7 @@ def _validate_axes(axes):
     axes = tuple(float(a) for a in axes)
     if len(axes) != 3:
         raise ConfigError(f"axes must have three entries a:b:c, got {axes}")
-    for name, a in zip("abc", axes):
+    for name, a in zip("abc", axes, strict=True):
         check_range(f"axes ratio {name}", a, 0.0, None, lo_open=True)
     return axes
 
@@ -346,7 +347,8 @@ def to_dataset(mesh: Mesh):
                 "node_coordinates": "node_x node_y node_z",
                 "face_node_connectivity": "face_node_connectivity",
             }),
-            "node_x": (("n_node",), v[:, 0], {"standard_name": "projection_x_coordinate", "units": "R", "long_name": "vertex x"}),
+            "node_x": (("n_node",), v[:, 0], {"standard_name": "projection_x_coordinate", "units": "R",
+                                              "long_name": "vertex x"}),
             "node_y": (("n_node",), v[:, 1], {"units": "R", "long_name": "vertex y"}),
             "node_z": (("n_node",), v[:, 2], {"units": "R", "long_name": "vertex z"}),
             "face_node_connectivity": (("n_face", "n_vertex_per_face"), f.astype(np.int32), {
@@ -383,7 +385,8 @@ def load(path) -> Mesh:
     except FileNotFoundError:
         raise MeshError(f"mesh file {path} does not exist") from None
     except (KeyError, OSError, ValueError) as exc:
-        raise MeshError(f"{path} is not a vesicle mesh file (need node_x/y/z and face_node_connectivity): {exc}") from None
+        raise MeshError(f"{path} is not a vesicle mesh file (need node_x/y/z and face_node_connectivity): "
+                        f"{exc}") from None
     for k in ("Conventions", "title", "source"):
         attrs.pop(k, None)
     try:

@@ -146,7 +146,7 @@ def _shade_stages(ax, st, x0, x1, label=True):
     spans = [(0.0, st.t_stage1_end, "I"), (st.t_stage2_start, st.t_stage2_end, "II")]
     if math.isfinite(st.t_recovery):
         spans.append((st.t_recovery, x1, "III"))
-    for (a, b, name), col in zip(spans, STAGE_COLOURS):
+    for (a, b, name), col in zip(spans, STAGE_COLOURS, strict=False):  # stage III is optional
         if not (math.isfinite(a) and math.isfinite(b)):
             continue
         a, b = max(a, x0), min(b, x1)
@@ -188,7 +188,7 @@ def plot_dynamics(spectra, theory=None, outputs="dynamics.png", *, title=None, d
         ls = _round_l(_scalar(ds, "l_peak")) or _round_l(_scalar(ds, "l_star"))
         series.append((ds, name, style, t, keep, sig, ls))
     stages = None
-    for ds, name, style, t, keep, sig, ls in series:
+    for _ds, name, _style, t, _keep, sig, _ls in series:
         stages = _stages(t, sig, noisy=(name == "IBM"))
         if stages is not None:
             stage_src = name
@@ -355,7 +355,7 @@ def plot_wrinkles(spectra, outputs="wrinkles.png", *, times=None, dpi=150, l_min
         th = np.asarray(ds["theta"].values, dtype=float)
         ph = np.asarray(ds["phi"].values, dtype=float)
         im = None
-        for ax, i in zip(map_axes, idx):
+        for ax, i in zip(map_axes, idx, strict=True):
             im = ax.pcolormesh(ph, th, maps[i], cmap="RdBu_r", norm=norm, shading="auto", rasterized=True)
             ax.set_title(rf"$A_p(\theta,\phi)$ at $\dot\gamma (t - t_0)$ = {t[i]:.3g}", fontsize=9)
             ax.set_xlabel(r"$\phi$")

@@ -119,7 +119,7 @@ def _pyvista_images(shapes, faces, views, px, clim, cmap, extent):
     pl.set_background("white")
     images = []
     try:
-        for (verts, vals), view in zip(shapes, views):
+        for (verts, vals), view in zip(shapes, views, strict=True):
             pl.clear_actors()
             mesh = pv.PolyData(verts, f)
             mesh.cell_data["tension"] = vals
@@ -150,7 +150,7 @@ def _mpl_images(shapes, faces, views, px, clim, cmap, extent):
     cm = plt.get_cmap(cmap)
     norm = Normalize(vmin=clim[0], vmax=clim[1])
     images = []
-    for (verts, vals), view in zip(shapes, views):
+    for (verts, vals), view in zip(shapes, views, strict=True):
         d, up = (np.asarray(a, dtype=float) for a in VIEWS[view])
         c = verts.mean(axis=0)
         tri = verts[faces] - c
@@ -228,7 +228,7 @@ def _compose(images, titles, nrows, ncols, clim, cmap, output, suptitle, label, 
     fig, axes = plt.subplots(nrows, ncols, figsize=(fig_w, fig_h), dpi=dpi, squeeze=False, constrained_layout=True)
     for ax in axes.ravel():
         ax.set_axis_off()
-    for ax, img, title in zip(axes.ravel(), images, titles):
+    for ax, img, title in zip(axes.ravel(), images, titles, strict=False):  # the grid may have spare cells
         ax.imshow(img)
         ax.set_title(title, fontsize=10)
     sm = ScalarMappable(norm=Normalize(*clim), cmap=cmap)

@@ -105,7 +105,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ConfigError, check_range
-from .units import chi_from_S, Params
+from .units import Params, chi_from_S
 
 __all__ = [
     "NORMALISATIONS",

@@ -59,9 +59,13 @@ def build_sweep(cfg):
         run = {k: _plain(run[k]) for k in RUN_KEYS}
         mid = _mesh_id(delta, mesh["family"], mesh["level"], mesh["n_vertices"], mesh["seed"], mesh["radius"])
         meshes[mid] = {
-            "delta": delta, "family": mesh["family"], "level": int(mesh["level"]),
-            "n_vertices": int(mesh["n_vertices"]), "seed": int(mesh["seed"]),
-            "lloyd_steps": int(mesh["lloyd_steps"]), "radius": float(mesh["radius"]),
+            "delta": delta,
+            "family": mesh["family"],
+            "level": int(mesh["level"]),
+            "n_vertices": int(mesh["n_vertices"]),
+            "seed": int(mesh["seed"]),
+            "lloyd_steps": int(mesh["lloyd_steps"]),
+            "radius": float(mesh["radius"]),
         }
         if "S" in group:
             flows = [("S", float(s)) for s in group["S"]]
@@ -70,17 +74,31 @@ def build_sweep(cfg):
         for kind, value in flows:
             S = value if kind == "S" else S_from_chi(value, delta)
             chi = chi_from_S(value, delta) if kind == "S" else value
-            cid = _case_id(delta, **{kind: value}, N=run["N"], family=mesh["family"], level=mesh["level"],
-                           n_vertices=mesh["n_vertices"] if mesh["family"] == "quasiuniform" else None,
-                           seed=mesh["seed"] if mesh["family"] == "quasiuniform" else 0, tag=group.get("tag"))
+            cid = _case_id(
+                delta,
+                **{kind: value},
+                N=run["N"],
+                family=mesh["family"],
+                level=mesh["level"],
+                n_vertices=mesh["n_vertices"] if mesh["family"] == "quasiuniform" else None,
+                seed=mesh["seed"] if mesh["family"] == "quasiuniform" else 0,
+                tag=group.get("tag"),
+            )
             if cid in cases:
                 raise ValueError(
                     f"config: sweep[{gi}] repeats case {cid} (same Delta, flow, N and mesh as another entry); "
                     "give one of the groups a 'tag'"
                 )
             tid = _theory_id(delta, S, th["seed"])
-            cases[cid] = {"delta": delta, "S": float(S), "chi": float(chi), "mesh_id": mid, "theory_id": tid,
-                          "run": run, "group": gi}
+            cases[cid] = {
+                "delta": delta,
+                "S": float(S),
+                "chi": float(chi),
+                "mesh_id": mid,
+                "theory_id": tid,
+                "run": run,
+                "group": gi,
+            }
             theories.setdefault(tid, {"delta": delta, "S": float(S)})
         for s in group.get("pa_S", []):
             theories.setdefault(_theory_id(delta, float(s), th["seed"]), {"delta": delta, "S": float(s)})
@@ -240,9 +258,11 @@ def _caption(path):
         return "Fig. 4 style: l_* against S, simulation and PA, fitted exponents"
     case = os.path.basename(os.path.dirname(path))
     kind = os.path.splitext(os.path.basename(path))[0]
-    text = {"dynamics": "Fig. 3/5 style: sigma(t), Delta_2, Delta_l* (simulation vs PA)",
-            "wrinkles": "Fig. 8 style: A_p maps, A_p-bar(t), Delta~_l(t)",
-            "views": "Fig. 6e/7c style: six views coloured by local tension"}[kind]
+    text = {
+        "dynamics": "Fig. 3/5 style: sigma(t), Delta_2, Delta_l* (simulation vs PA)",
+        "wrinkles": "Fig. 8 style: A_p maps, A_p-bar(t), Delta~_l(t)",
+        "views": "Fig. 6e/7c style: six views coloured by local tension",
+    }[kind]
     return f"{text}, {case}"
 
 
@@ -250,8 +270,10 @@ def validation_args(wildcards, input):
     v = config["validation"]
     parts = []
     for cid in CASES:
-        parts.append(f"--case {cid} {validation_group(cid)} {input[f'traj_{cid}']} {input[f'spec_{cid}']} "
-                     f"{input[f'theo_{cid}']}")
+        parts.append(
+            f"--case {cid} {validation_group(cid)} {input[f'traj_{cid}']} {input[f'spec_{cid}']} "
+            f"{input[f'theo_{cid}']}"
+        )
     parts.append(f"--fit fine {input.fit}")
     box = [c for t in v["box_tags"] for c in CASES if _case_tag(c) == t]
     if len(box) == 2:
