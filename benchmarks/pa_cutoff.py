@@ -77,7 +77,7 @@ def main(argv=None):
         ds = results[name]
         for L in ds["l_max"].values:
             d = ds.sel(l_max=L)
-            active = [s for s, t in zip(ds["S"].values, d["truncated"].values) if t]
+            active = [s for s, t in zip(ds["S"].values, d["truncated"].values, strict=True) if t]
             rows.append({
                 "S_set": name, "n_S": len(S), "l_max": _label(L),
                 "b": float(d.b), "b_low": float(d.b_low), "b_high": float(d.b_high),

@@ -102,6 +102,7 @@ def test_each_default_has_one_home():
     schema = yaml.safe_load((ROOT / "workflow" / "schemas" / "config.schema.yaml").read_text())
     for section in ("run", "mesh"):
         assert "properties" not in schema["properties"][section]
+
     def keys(node):
         if isinstance(node, dict):
             for k, v in node.items():

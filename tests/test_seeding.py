@@ -41,10 +41,16 @@ def test_scale_multiplies_the_variance():
     assert np.all(c1[:3] == 0)
 
 
-@pytest.mark.parametrize("kw, name", [(dict(seed_spectrum="white"), "seed_spectrum"), (dict(seed_scale=-1), "seed_scale"),
-                                      (dict(seed=-2), "seed"), (dict(seed_spectrum="thermal", stationary_tol=0.1),
-                                                                 "stationary_tol"),
-                                      (dict(store_velocity="yes"), "store_velocity")])
+@pytest.mark.parametrize(
+    "kw, name",
+    [
+        (dict(seed_spectrum="white"), "seed_spectrum"),
+        (dict(seed_scale=-1), "seed_scale"),
+        (dict(seed=-2), "seed"),
+        (dict(seed_spectrum="thermal", stationary_tol=0.1), "stationary_tol"),
+        (dict(store_velocity="yes"), "store_velocity"),
+    ],
+)
 def test_bad_seed_config_names_field(kw, name):
     with pytest.raises(ConfigError, match=name):
         RunConfig(**kw)
@@ -54,8 +60,17 @@ def test_bad_seed_config_names_field(kw, name):
 def pair(tmp_path_factory):
     d = tmp_path_factory.mktemp("seed")
     m = M.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    base = dict(chi=20.0, N=16, stretch=0.1, t_end=0.02, output_every=0.005, Lambda=2e4, K_volume=1e6, dt=2.5e-4,
-                store_velocity=True)
+    base = dict(
+        chi=20.0,
+        N=16,
+        stretch=0.1,
+        t_end=0.02,
+        output_every=0.005,
+        Lambda=2e4,
+        K_volume=1e6,
+        dt=2.5e-4,
+        store_velocity=True,
+    )
     out = {}
     for name, extra in (("mesh", {}), ("thermal", dict(seed_spectrum="thermal", seed_scale=100.0))):
         with xr.open_dataset(run(m, RunConfig(**base, **extra), d / name, progress=False)) as ds:

@@ -164,10 +164,9 @@ def test_config_files_satisfy_schema_and_solver():
 
     from snakemake.utils import validate
 
+    from vesicle_core.parameters import RUN_PARAMETERS, defaults
     from vesicle_core.simulate import RunConfig
     from vesicle_core.units import chi_from_S
-
-    from vesicle_core.parameters import RUN_PARAMETERS, defaults
 
     schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
     params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"

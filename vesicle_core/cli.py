@@ -74,7 +74,8 @@ def _cmd_mesh(a):
     print(f"  family {m.attrs['family']}  vertices {m.n_vertices}  faces {m.n_faces}")
     print(f"  axes {m.attrs['axes_a']:.6g}:{m.attrs['axes_b']:.6g}:{m.attrs['axes_c']:.6g}  R {a.radius:g}")
     print(f"  Delta {m.excess_area():.6f}  volume {m.volume():.6g}  area {m.area():.6g}")
-    print(f"  edge min/mean/max {q['edge_min']:.4g}/{q['edge_mean']:.4g}/{q['edge_max']:.4g}  spread {q['edge_spread']:.3f}")
+    print(f"  edge min/mean/max {q['edge_min']:.4g}/{q['edge_mean']:.4g}/{q['edge_max']:.4g}  "
+          f"spread {q['edge_spread']:.3f}")
     print(f"  aspect mean/max {q['aspect_mean']:.3f}/{q['aspect_max']:.3f}  angles min/max "
           f"{q['angle_min_deg']:.1f}/{q['angle_max_deg']:.1f} deg")
     return 0
@@ -105,8 +106,8 @@ def _add_run(sub):
     p.add_argument("-o", "--outdir", required=True, help="run directory (trajectory.nc, checkpoint.nc)")
     p.add_argument("-c", "--config", help="YAML file of run parameters (see vesicle_core.simulate.RunConfig)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one run parameter (repeatable)")
-    p.add_argument("--si", metavar="YAML", help="YAML of SI parameters (units.Params: R, gamma_dot, mu, kappa, rho, L, ...)"
-                   " from which chi, Re and L are derived")
+    p.add_argument("--si", metavar="YAML", help="YAML of SI parameters (units.Params: R, gamma_dot, mu, kappa, rho, "
+                   "L, ...) from which chi, Re and L are derived")
     p.add_argument("--quiet", action="store_true", help="no progress output")
     p.set_defaults(func=_cmd_run)
 

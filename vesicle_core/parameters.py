@@ -105,73 +105,253 @@ _KERNELS = ("peskin4", "roma3", "bao6")
 
 #: parameters of one IBM run (``vesicle run``, ``RunConfig``), in solver units (R, kappa, tau = mu R^3 / kappa)
 RUN_PARAMETERS: tuple[Parameter, ...] = (
-    Parameter("chi", 67.0, "float", "dimensionless extensional rate gamma_dot mu R^3 / kappa", "1", 0.0, 1e7,
-              workflow=False),
+    Parameter(
+        "chi", 67.0, "float", "dimensionless extensional rate gamma_dot mu R^3 / kappa", "1", 0.0, 1e7, workflow=False
+    ),
     Parameter("N", 32, "int", "grid nodes per axis", "", 8, 4096, multiple_of=2),
-    Parameter("L", 5.0, "float", "periodic box edge (Table III: 90 um / R = 5.386 at R = 16.71 um, 5.0 at R = 18 um)", "R", 2.0, 1000.0, lo_open=True),
-    Parameter("Re", 0.0, "float", "Reynolds number gamma_dot rho R^2 / mu; 0 = steady Stokes (Table III gives ~2e-4)", "", 0.0, 10.0),
-    Parameter("Lambda", None, "float", "tension modulus of eq. (A5); null = the default for chi and scheme "
-              "(simulate.default_lambda: 1.5e4 chi explicit, 1.5e3 chi projection; inextensible: the area-stretch "
-              "modulus of the constraint, 5e4 chi, floor 1e6)", "kappa/R^2", 0.0, 1e12, nullable=True),
+    Parameter(
+        "L",
+        5.0,
+        "float",
+        "periodic box edge (Table III: 90 um / R = 5.386 at R = 16.71 um, 5.0 at R = 18 um)",
+        "R",
+        2.0,
+        1000.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "Re",
+        0.0,
+        "float",
+        "Reynolds number gamma_dot rho R^2 / mu; 0 = steady Stokes (Table III gives ~2e-4)",
+        "",
+        0.0,
+        10.0,
+    ),
+    Parameter(
+        "Lambda",
+        None,
+        "float",
+        "tension modulus of eq. (A5); null = the default for chi and scheme "
+        "(simulate.default_lambda: 1.5e4 chi explicit, 1.5e3 chi projection; inextensible: the area-stretch "
+        "modulus of the constraint, 5e4 chi, floor 1e6)",
+        "kappa/R^2",
+        0.0,
+        1e12,
+        nullable=True,
+    ),
     Parameter("K_volume", 1.0e7, "float", "global volume penalty; holds V without costing dt", "kappa/R^3", 0.0, 1e12),
     Parameter("K_area", 0.0, "float", "global area penalty", "kappa/R^2", 0.0, 1e12),
-    Parameter("area_model", "voronoi", "str", "vertex area in the bending energy (barycentric: the paper's)", choices=("voronoi", "barycentric")),
-    Parameter("kernel", "peskin4", "str", "regularised delta: Peskin's 4-point (eq. 27), Roma-Peskin-Berger 3-point, "
-              "Bao-Kaye-Peskin 6-point (kernels.py)", choices=_KERNELS),
-    Parameter("scheme", "projection", "str", "time integrator (integrators.py). explicit: the paper's area penalty alone; "
-              "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
-              "tension per triangle solved each step from the local area constraint, adaptive steps (docs/solver.md)", choices=_SCHEMES),
-    Parameter("projection_refresh", 10, "int", "steps between recomputations of cached mobility data (projection, "
-              "inextensible)", "", 1, 10000),
+    Parameter(
+        "area_model",
+        "voronoi",
+        "str",
+        "vertex area in the bending energy (barycentric: the paper's)",
+        choices=("voronoi", "barycentric"),
+    ),
+    Parameter(
+        "kernel",
+        "peskin4",
+        "str",
+        "regularised delta: Peskin's 4-point (eq. 27), Roma-Peskin-Berger 3-point, "
+        "Bao-Kaye-Peskin 6-point (kernels.py)",
+        choices=_KERNELS,
+    ),
+    Parameter(
+        "scheme",
+        "projection",
+        "str",
+        "time integrator (integrators.py). explicit: the paper's area penalty alone; "
+        "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
+        "tension per triangle solved each step from the local area constraint, adaptive steps (docs/solver.md)",
+        choices=_SCHEMES,
+    ),
+    Parameter(
+        "projection_refresh",
+        10,
+        "int",
+        "steps between recomputations of cached mobility data (projection, inextensible)",
+        "",
+        1,
+        10000,
+    ),
     Parameter("stretch", 1.0, "float", "longest forward-flow phase before the reversal", "gamma_dot t", 0.0, 1e4),
-    Parameter("stationary_tol", 0.0, "float", "reverse early once the relative shape change per gamma_dot t is "
-              "below this (0 = never)", "", 0.0, 1.0),
+    Parameter(
+        "stationary_tol",
+        0.0,
+        "float",
+        "reverse early once the relative shape change per gamma_dot t is below this (0 = never)",
+        "",
+        0.0,
+        1.0,
+    ),
     Parameter("t_end", 1.5, "float", "duration after the reversal", "gamma_dot t", 0.0, 1e4),
-    Parameter("dt", "power", "float", "time step: power iteration on the linearised operator, the stability "
-              "formula of simulate.formula_dt (area penalty 40 h/Lambda, bending 13-20 h^3), or fixed; the "
-              "inextensible scheme re-estimates it every step", "tau", 0.0, 1.0, lo_open=True, also=("power", "formula")),
-    Parameter("dt_safety", 0.8, "float", "fraction of the stability limit used as the step. The limit is measured "
-              "at the initial shape; a vesicle that deforms strongly (Delta ~ 1) stiffens as it stretches and needs "
-              "~0.4 with the explicit and projection schemes. An unstable run stops with exit status 3 and "
-              "failure.nc", "", 0.0, 1.0, lo_open=True),
-    Parameter("output_every", 0.02, "float", "interval between stored frames (the time resolution of every curve)", "gamma_dot t", 0.0, 1e4, lo_open=True),
-    Parameter("checkpoint_every", 2000, "int", "steps between checkpoints (a restarted job resumes from the last one)", "", 1, None),
-    Parameter("max_drift", 0.05, "float", "relative area or volume drift that stops a run as unstable", "", 0.0, 1.0,
-              lo_open=True),
-    Parameter("backend", "numpy", "str", "array module; cupy needs a GPU (and resources.simulate.gpu: 1)", choices=("numpy", "cupy", "auto")),
-    Parameter("dtype", "float64", "str", "precision of grid fields and FFTs (positions and forces stay float64)",
-              choices=("float64", "float32")),
+    Parameter(
+        "dt",
+        "power",
+        "float",
+        "time step: power iteration on the linearised operator, the stability "
+        "formula of simulate.formula_dt (area penalty 40 h/Lambda, bending 13-20 h^3), or fixed; the "
+        "inextensible scheme re-estimates it every step",
+        "tau",
+        0.0,
+        1.0,
+        lo_open=True,
+        also=("power", "formula"),
+    ),
+    Parameter(
+        "dt_safety",
+        0.8,
+        "float",
+        "fraction of the stability limit used as the step. The limit is measured "
+        "at the initial shape; a vesicle that deforms strongly (Delta ~ 1) stiffens as it stretches and needs "
+        "~0.4 with the explicit and projection schemes. An unstable run stops with exit status 3 and "
+        "failure.nc",
+        "",
+        0.0,
+        1.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "output_every",
+        0.02,
+        "float",
+        "interval between stored frames (the time resolution of every curve)",
+        "gamma_dot t",
+        0.0,
+        1e4,
+        lo_open=True,
+    ),
+    Parameter(
+        "checkpoint_every",
+        2000,
+        "int",
+        "steps between checkpoints (a restarted job resumes from the last one)",
+        "",
+        1,
+        None,
+    ),
+    Parameter(
+        "max_drift",
+        0.05,
+        "float",
+        "relative area or volume drift that stops a run as unstable",
+        "",
+        0.0,
+        1.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "backend",
+        "numpy",
+        "str",
+        "array module; cupy needs a GPU (and resources.simulate.gpu: 1)",
+        choices=("numpy", "cupy", "auto"),
+    ),
+    Parameter(
+        "dtype",
+        "float64",
+        "str",
+        "precision of grid fields and FFTs (positions and forces stay float64)",
+        choices=("float64", "float32"),
+    ),
     Parameter("fft_workers", 1, "int", "CPU FFT threads; also the workflow job's threads", "", 1, 256),
-    Parameter("cg_tol", 1.0e-5, "float", "inextensible: CG tolerance, rms area strain of the residual; the next "
-              "step corrects it, so it does not accumulate (docs/solver.md)", "", 0.0, 1e-2,
-              lo_open=True),
-    Parameter("cg_maxiter", 200, "int", "inextensible: CG iterations before the run stops (NumericalInstability)",
-              "", 1, 100000),
-    Parameter("cg_precond", "compliance", "str", "inextensible: CG preconditioner. local adds the IBM's measured "
-              "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
-              "helps up to 128^3; at 256^3 the truncated mobility loses definiteness and the solve falls back to "
-              "compliance (slow)", choices=("compliance", "local")),
-    Parameter("dt_growth", 0.1, "float", "inextensible, adaptive dt: e-folds of the fastest wrinkle mode the grid "
-              "resolves per step, and dt_growth/10 strain units of the background flow per step", "", 0.0, 1.0, lo_open=True),
-    Parameter("seed_spectrum", "mesh", "str", "wrinkle seed at the reversal: mesh noise only, or the PA's thermal "
-              "spectrum (seeding.py)", choices=("mesh", "thermal")),
+    Parameter(
+        "cg_tol",
+        1.0e-5,
+        "float",
+        "inextensible: CG tolerance, rms area strain of the residual; the next "
+        "step corrects it, so it does not accumulate (docs/solver.md)",
+        "",
+        0.0,
+        1e-2,
+        lo_open=True,
+    ),
+    Parameter(
+        "cg_maxiter",
+        200,
+        "int",
+        "inextensible: CG iterations before the run stops (NumericalInstability)",
+        "",
+        1,
+        100000,
+    ),
+    Parameter(
+        "cg_precond",
+        "compliance",
+        "str",
+        "inextensible: CG preconditioner. local adds the IBM's measured "
+        "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
+        "helps up to 128^3; at 256^3 the truncated mobility loses definiteness and the solve falls back to "
+        "compliance (slow)",
+        choices=("compliance", "local"),
+    ),
+    Parameter(
+        "dt_growth",
+        0.1,
+        "float",
+        "inextensible, adaptive dt: e-folds of the fastest wrinkle mode the grid "
+        "resolves per step, and dt_growth/10 strain units of the background flow per step",
+        "",
+        0.0,
+        1.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "seed_spectrum",
+        "mesh",
+        "str",
+        "wrinkle seed at the reversal: mesh noise only, or the PA's thermal spectrum (seeding.py)",
+        choices=("mesh", "thermal"),
+    ),
     Parameter("seed_scale", 1.0, "float", "thermal seed: factor on k_B T (the variance of every mode)", "", 0.0, 1e6),
     Parameter("seed", 0, "int", "thermal seed: random draw (the PA's seed)", "", 0, 2**31 - 1),
-    Parameter("store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, "
-              "node_uz)"),
+    Parameter(
+        "store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, node_uz)"
+    ),
 )
 
 #: parameters of a vesicle mesh (``vesicle mesh``, the workflow's ``mesh`` section); Delta comes from the sweep
 MESH_PARAMETERS: tuple[Parameter, ...] = (
-    Parameter("family", "quasiuniform", "str", "mesh family (quasiuniform has no icosahedral bias; config/README.md, Why quasi-uniform)",
-              choices=("icosphere", "quasiuniform")),
-    Parameter("level", 3, "int", "icosphere level: 10 4^level + 2 vertices (42, 162, 642, 2562, 10242, 40962 ...); also the "
-              "default vertex count of the quasi-uniform family", "", 0, 9),
-    Parameter("n_vertices", None, "int", "vertex count of the quasi-uniform family (null: that of level); ignored by the icosphere", "",
-              12, 20000000, nullable=True),
+    Parameter(
+        "family",
+        "quasiuniform",
+        "str",
+        "mesh family (quasiuniform has no icosahedral bias; config/README.md, Why quasi-uniform)",
+        choices=("icosphere", "quasiuniform"),
+    ),
+    Parameter(
+        "level",
+        3,
+        "int",
+        "icosphere level: 10 4^level + 2 vertices (42, 162, 642, 2562, 10242, 40962 ...); also the "
+        "default vertex count of the quasi-uniform family",
+        "",
+        0,
+        9,
+    ),
+    Parameter(
+        "n_vertices",
+        None,
+        "int",
+        "vertex count of the quasi-uniform family (null: that of level); ignored by the icosphere",
+        "",
+        12,
+        20000000,
+        nullable=True,
+    ),
     Parameter("seed", 0, "int", "seed of the quasi-uniform family", "", 0, 2**31 - 1),
     Parameter("lloyd_steps", 8, "int", "Lloyd relaxation steps (quasi-uniform)", "", 0, 1000),
-    Parameter("radius", 1.0, "float", "equivalent radius, volume 4/3 pi R^3 (the solver's length unit: keep 1)", "R", 0.0, None, lo_open=True),
+    Parameter(
+        "radius",
+        1.0,
+        "float",
+        "equivalent radius, volume 4/3 pi R^3 (the solver's length unit: keep 1)",
+        "R",
+        0.0,
+        None,
+        lo_open=True,
+    ),
 )
 
 RUN = {p.name: p for p in RUN_PARAMETERS}
@@ -195,8 +375,12 @@ def check_all(values: dict, table=RUN_PARAMETERS, where: str = "") -> dict:
 
 def schema_section(table, title: str) -> dict:
     """The ``properties`` of a schema section generated from a table."""
-    return {"type": "object", "additionalProperties": False, "description": title,
-            "properties": {p.name: p.json_schema() for p in table if p.workflow}}
+    return {
+        "type": "object",
+        "additionalProperties": False,
+        "description": title,
+        "properties": {p.name: p.json_schema() for p in table if p.workflow},
+    }
 
 
 def markdown_table(table, with_default=False) -> str:
@@ -205,8 +389,13 @@ def markdown_table(table, with_default=False) -> str:
     for p in table:
         cells = [f"`{p.name}`", p.unit or "-", p.allowed(), p.help]
         if with_default:
-            cells.append("null" if p.default is None else str(p.default).lower() if isinstance(p.default, bool)
-                         else str(p.default))
+            cells.append(
+                "null"
+                if p.default is None
+                else str(p.default).lower()
+                if isinstance(p.default, bool)
+                else str(p.default)
+            )
         rows.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(rows)
 
@@ -220,11 +409,15 @@ BEGIN, END = "<!-- BEGIN generated: {} -->", "<!-- END generated: {} -->"
 def schema_text() -> str:
     import yaml
 
-    doc = {"$schema": "https://json-schema.org/draft/2020-12/schema",
-           "description": "GENERATED by `python -m vesicle_core.parameters --write` from vesicle_core/parameters.py;"
-                          " do not edit",
-           "$defs": {"run": schema_section(RUN_PARAMETERS, "parameters of 'vesicle run' except chi (from the sweep)"),
-                     "mesh": schema_section(MESH_PARAMETERS, "parameters of 'vesicle mesh'")}}
+    doc = {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "description": "GENERATED by `python -m vesicle_core.parameters --write` from vesicle_core/parameters.py;"
+        " do not edit",
+        "$defs": {
+            "run": schema_section(RUN_PARAMETERS, "parameters of 'vesicle run' except chi (from the sweep)"),
+            "mesh": schema_section(MESH_PARAMETERS, "parameters of 'vesicle mesh'"),
+        },
+    }
     return yaml.safe_dump(doc, sort_keys=False, width=120)
 
 

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from . import membrane as B
-from .errors import ConfigError, NumericalInstability, check_range
+from .errors import ConfigError, NumericalInstability
 from .io import atomic_to_netcdf
 
 log = logging.getLogger("vesicle_core.simulate")
@@ -88,7 +88,7 @@ class _RunConfigRules:
         return 1.0 / self.chi if self.chi > 0 else 1.0
 
     @classmethod
-    def from_dict(cls, d: dict) -> "RunConfig":
+    def from_dict(cls, d: dict) -> RunConfig:
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - names)
         if unknown:
@@ -173,7 +173,8 @@ class IBMSolver:
         self.xp = xp
         self.grid = Grid(cfg.N, cfg.L)
         self.stokes = StokesSolver(self.grid, self.be, rho_bar=cfg.rho_bar)
-        self.coupler = Coupler(self.grid, self.be, kernel=cfg.kernel)  # reused stencil and grid buffers (no page faults per step)
+        # reused stencil and grid buffers (no page faults per step)
+        self.coupler = Coupler(self.grid, self.be, kernel=cfg.kernel)
         self._grid_buf = self.be.empty(self.grid.field_shape)
         # the inextensible scheme carries the tension as an unknown: no penalty (A5) in the force
         penalty = 0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff
@@ -214,8 +215,9 @@ def background_velocity(X, rate):
 
 
 def formula_dt(cfg: RunConfig, edge_mean: float, flow: bool = True) -> float:
-    """Stable-step estimate (tau) measured by power iteration on the linearised operator: area penalty 40 h/Lambda, bending 13 h^3 (edge ~ h)
-    to 20 h^3 (edge ~ 2h), and 0.01/chi so the background flow moves a vertex by < 1% of R per step."""
+    """Stable-step estimate (tau) measured by power iteration on the linearised operator: area penalty
+    40 h/Lambda, bending 13 h^3 (edge ~ h) to 20 h^3 (edge ~ 2h), and 0.01/chi so the background flow moves a
+    vertex by < 1% of R per step."""
     h = cfg.h
     lam = (0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff) + cfg.K_area
     c_b = 13.0 + 7.0 * min(max(edge_mean / h - 1.0, 0.0), 1.0)
@@ -385,7 +387,8 @@ class TrajectoryWriter:
             if ds.sizes["time"] == n:
                 return
             if ds.sizes["time"] < n:
-                raise NumericalInstability(f"{self.path} holds fewer frames than its checkpoint; delete the run directory")
+                raise NumericalInstability(f"{self.path} holds fewer frames than its checkpoint; "
+                                           "delete the run directory")
             kept = ds.isel(time=slice(0, n)).load()
         kept.encoding = {}
         atomic_to_netcdf(kept, self.path, unlimited_dims=["time"])
@@ -619,7 +622,8 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         sig = B.global_tension(geo, sig_l) + (cfg.K_area * (A - A0) / A0 if cfg.K_area else 0.0)
         flow_sign = 1.0 if state.phase == "stretch" else -1.0
         sc = {"t_tau": state.t, "tension": sig, "area": A, "volume": V, "area_drift": A / A0 - 1,
-              "volume_drift": V / V0 - 1, "bending_energy": B.bending_energy(X, mem.topo, mem.kappa, geo, mem.area_model),
+              "volume_drift": V / V0 - 1,
+              "bending_energy": B.bending_energy(X, mem.topo, mem.kappa, geo, mem.area_model),
               "tension_energy": B.tension_energy(geo, mem.ref, mem.Lambda), "flow_sign": flow_sign}
         if not all(math.isfinite(v) for v in sc.values()):
             fail("non-finite energy or tension", X)
@@ -639,7 +643,8 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
                           attrs={"message": msg, "step": state.step, "t_tau": state.t, "dt": dt, "phase": state.phase})
         atomic_to_netcdf(diag, outdir / FAILURE)
         bar.close()
-        raise NumericalInstability(f"{msg} (step {state.step}, t = {state.t:.6g} tau); state written to {outdir / FAILURE}")
+        raise NumericalInstability(f"{msg} (step {state.step}, t = {state.t:.6g} tau); "
+                                   f"state written to {outdir / FAILURE}")
 
     def next_frame_time():
         base = state.t_reverse if state.phase == "relax" else 0.0
