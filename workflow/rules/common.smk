@@ -222,8 +222,17 @@ def _case_tag(cid):
 
 
 def validation_group(cid):
+    """The report's role of a case, from its tag: the ladder (its finest rung is the report's main sweep),
+    seed and one-change variations, the periodic-box pair, the coarse copy, or the main sweep."""
     v = config["validation"]
     tag = _case_tag(cid)
+    if v.get("ladder_tag") and tag == v["ladder_tag"]:
+        finest = max(CASES[c]["run"]["N"] for c in CASES if _case_tag(c) == tag)
+        return "fine" if CASES[cid]["run"]["N"] == finest else "ladder"
+    if tag in v.get("seed_tags", []):
+        return "seed"
+    if tag in v.get("variation_tags", []):
+        return "variation"
     if tag == v["coarse_tag"]:
         return "coarse"
     if tag in v["box_tags"]:
