@@ -51,3 +51,48 @@ def test_report_from_real_files(box_runs, tmp_path):
     for word in ("Characteristic wrinkle mode", "Periodic box", "Conservation", "differs from the paper", "fig.png"):
         assert word in text
     assert np.isfinite(stage1_growth(spec)) or np.isnan(float(spec.t_star))
+
+
+# --------------------------------------------------------------------------- findings follow the numbers
+def _row(S, N, l_star, group="ladder", tag="ladder", **kw):
+    base = dict(case_id=f"D0.116_S{S:g}_N{N}_{tag}", group=group, delta=0.116, tag=tag, delta_mesh=0.116, S=S,
+                chi=1.0, N=N, L=5.0, h=5.0 / N, vertices=10 * N**2 // 6, family="quasiuniform", kernel="peskin4",
+                seed_spectrum="mesh", seed_scale=1.0, sim_l_star=l_star, sim_l_peak=round(l_star) + 2,
+                pa_l_star=12.4 if S < 1000 else 22.6, pa_l_peak=14, paper_pa=14 if S < 1000 else 25,
+                paper_ibm=15 if S < 1000 else 28, sim_t_star=0.2, pa_t_star=0.17, growth_decades=3.0,
+                max_area_drift=1e-4, max_volume_drift=1e-5, dt_gamma=1e-3, steps=300, wall_s=60.0,
+                scheme="inextensible", defect_ratio=0.1)
+    base.update(kw)
+    return base
+
+
+def _ladder(limit_553, limit_2224):
+    rows = []
+    for N in (64, 128, 192, 256):
+        h = 5.0 / N
+        for S, lim in ((553.0, limit_553), (2224.0, limit_2224)):
+            rows.append(_row(S, N, lim - 4000.0 * h**2, group="fine" if N == 256 else "ladder"))
+    return {"rows": rows, "fits": {}, "box": None, "relaxation": None, "cutoff": None}
+
+
+def test_ladder_findings_follow_the_numbers():
+    agree = render({}, _ladder(15.0, 28.0))
+    assert "Resolution ladder" in agree
+    assert "extrapolation 28.0 [28.0, 28.0] is within 10% of it" in agree
+    far = render({}, _ladder(15.0, 40.0))
+    assert "(more than 10% above it)" in far  # the extrapolated S = 2224 value now lies far above the paper's 28
+    # an exact h^2 law extrapolates back to its limit
+    from vesicle_core.validation import ladder_summary
+
+    s = ladder_summary(_ladder(15.0, 28.0)["rows"])
+    assert abs(s[2224.0]["h2"]["value"] - 28.0) < 1e-9
+
+
+def test_seed_and_variation_findings():
+    data = _ladder(15.0, 28.0)
+    data["rows"] += [_row(2224.0, 128, 20.0, group="seed", tag="seed-thermal", seed_spectrum="thermal"),
+                     _row(2224.0, 128, 16.0, group="variation", tag="kernel-roma3", kernel="roma3")]
+    text = render({}, data)
+    base = 28.0 - 4000.0 * (5.0 / 128) ** 2
+    assert "Wrinkle seeds" in text and f"{20.0 / base - 1:+.1%}" in text
+    assert "One change at a time" in text and f"kernel-roma3 {16.0 / base - 1:+.1%}" in text

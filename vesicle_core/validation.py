@@ -53,9 +53,16 @@ def _fmt(x, nd=3):
         return str(x)
     if not math.isfinite(x):
         return "-"
-    if x != 0 and (abs(x) < 1e-3 or abs(x) >= 1e5):
+    if x != 0 and (abs(x) < 1e-3 or abs(x) >= 1e7):
         return f"{x:.2e}"
+    if abs(x) >= 10 ** nd:  # 2224, 10242: all digits, not 2.22e+03
+        return f"{x:.0f}" if x == int(x) else f"{x:.1f}"
     return f"{x:.{nd}g}"
+
+
+def _verdict_words(v):
+    return {"within": "within 10% of", "below": "more than 10% below", "above": "more than 10% above"}.get(
+        v, "not comparable with")
 
 
 def stage1_growth(spectra, l_min=6) -> float:
@@ -412,9 +419,10 @@ def _render_ladder(summary, data, manifest):
         shrinking = all(b < a for a, b in zip(inc, inc[1:], strict=False)) if len(inc) > 1 else False
         md.append(f"Finding: l_* changes by {', '.join(f'{d:+.2f}' for d in inc)} from rung to rung "
                   f"({'shrinking steps' if shrinking else 'steps that do not shrink monotonically'}); the finest rung "
-                  f"is {s['finest_verdict']} 10% of the paper's {s['paper_ibm']} and the h^2 extrapolation "
-                  f"{e2['value']:.1f} [{e2['low']:.1f}, {e2['high']:.1f}] is {s['extrapolated_verdict']}; the two "
-                  f"extrapolation models differ by {abs(e2['value'] - e1['value']):.1f}.")
+                  f"is {_verdict_words(s['finest_verdict'])} the paper's {s['paper_ibm']}, and the h^2 extrapolation "
+                  f"{e2['value']:.1f} [{e2['low']:.1f}, {e2['high']:.1f}] is "
+                  f"{_verdict_words(s['extrapolated_verdict'])} it; the two extrapolation models differ by "
+                  f"{abs(e2['value'] - e1['value']):.1f}.")
         md.append("")
     return md
 
@@ -623,9 +631,9 @@ def discussion(data, summary=None) -> list[str]:
     if summary:
         for S, s in summary.items():
             out.append(f"- S = {S:g}: finest rung l_* = {s['rungs'][-1]['sim_l_star']:.1f} "
-                       f"({s['finest_verdict']} 10% of the paper's {s['paper_ibm']}), extrapolated "
+                       f"({_verdict_words(s['finest_verdict'])} the paper's {s['paper_ibm']}), extrapolated "
                        f"{s['h2']['value']:.1f} [{s['h2']['low']:.1f}, {s['h2']['high']:.1f}] "
-                       f"({s['extrapolated_verdict']}).")
+                       f"({_verdict_words(s['extrapolated_verdict'])} it).")
     rel = data.get("relaxation")
     if rel:
         t = max(rel, key=lambda t: t["N"])
