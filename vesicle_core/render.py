@@ -111,6 +111,27 @@ def _check_mesh(vertices, faces, values):
     return v, f, val
 
 
+def vertex_average(vertices, faces, face_values):
+    """Area-weighted mean of the face values around each vertex, (n,): the smooth field the renders colour by.
+
+    A per-triangle tension carries a mesh-scale alternation that hides the wrinkles; its vertex average is the
+    field on the scale the wrinkles live on (Figs. 6e, 7c).
+    """
+    v, f, val = _check_mesh(vertices, faces, face_values)
+    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    num = np.bincount(f.ravel(), weights=np.repeat(val * area, 3), minlength=len(v))
+    den = np.bincount(f.ravel(), weights=np.repeat(area, 3), minlength=len(v))
+    return num / np.maximum(den, 1e-300)
+
+
+def _vertex_normals(verts, faces):
+    n = np.cross(verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]])
+    out = np.zeros_like(verts)
+    for k in range(3):
+        np.add.at(out, faces[:, k], n)
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+
+
 def _pyvista_images(shapes, faces, views, px, clim, cmap, extent):
     import pyvista as pv
 
@@ -122,8 +143,9 @@ def _pyvista_images(shapes, faces, views, px, clim, cmap, extent):
         for (verts, vals), view in zip(shapes, views, strict=True):
             pl.clear_actors()
             mesh = pv.PolyData(verts, f)
-            mesh.cell_data["tension"] = vals
-            pl.add_mesh(mesh, scalars="tension", cmap=cmap, clim=clim, show_scalar_bar=False, smooth_shading=False,
+            smooth = len(vals) == len(verts)  # vertex values: interpolated colours and Phong normals
+            (mesh.point_data if smooth else mesh.cell_data)["tension"] = vals
+            pl.add_mesh(mesh, scalars="tension", cmap=cmap, clim=clim, show_scalar_bar=False, smooth_shading=smooth,
                         show_edges=False)
             d, up = VIEWS[view]
             c = verts.mean(axis=0)
@@ -139,7 +161,9 @@ def _pyvista_images(shapes, faces, views, px, clim, cmap, extent):
 
 
 def _mpl_images(shapes, faces, views, px, clim, cmap, extent):
-    """Flat-shaded 3D polygons drawn with matplotlib into images of px pixels (the fallback engine)."""
+    """3D polygons drawn with matplotlib into images of px pixels (the fallback engine). With vertex values each
+    triangle takes the mean of its corners' colours and the shading of its corners' normals (no interpolation
+    inside a triangle, but no mesh-scale alternation either)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -158,8 +182,13 @@ def _mpl_images(shapes, faces, views, px, clim, cmap, extent):
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         light = d + 0.35 * up
         light /= np.linalg.norm(light)
-        shade = 0.35 + 0.65 * np.clip(n @ light, 0.0, 1.0)
-        rgba = cm(norm(vals))
+        if len(vals) == len(verts):
+            vn = _vertex_normals(verts, faces)
+            shade = (0.35 + 0.65 * np.clip(vn @ light, 0.0, 1.0))[faces].mean(axis=1)
+            rgba = cm(norm(np.asarray(vals)[faces].mean(axis=1)))
+        else:
+            shade = 0.35 + 0.65 * np.clip(n @ light, 0.0, 1.0)
+            rgba = cm(norm(vals))
         rgba[:, :3] *= shade[:, None]
         visible = n @ d > -0.05  # back faces are hidden anyway; dropping them speeds up the painter
         dpi = 100
@@ -243,12 +272,16 @@ def _compose(images, titles, nrows, ncols, clim, cmap, output, suptitle, label, 
 
 
 def render_views(vertices, faces, values, output, *, views=SIX, size=(1500, 1000), clim=None, cmap=CMAP,
-                 title=None, engine=None, label=r"local tension  [$\kappa/R^2$]"):
+                 title=None, engine=None, label=r"local tension  [$\kappa/R^2$]", smooth=True):
     """One shape from several directions (default the six of Fig. 6e) in a 2 x 3 grid, one colour bar.
 
-    values: one number per face (local tension). size: pixel size of the whole grid. Returns the PNG path.
+    values: one number per face (local tension). smooth: colour by its vertex average (:func:`vertex_average`)
+    with smooth shading, as the paper's figures; False draws the raw per-triangle values flat. size: pixel size
+    of the whole grid. Returns the PNG path.
     """
     v, f, val = _check_mesh(vertices, faces, values)
+    if smooth:
+        val = vertex_average(v, f, val)
     views = tuple(views)
     for name in views:
         if name not in VIEWS:
@@ -263,9 +296,9 @@ def render_views(vertices, faces, values, output, *, views=SIX, size=(1500, 1000
 
 
 def render_snapshots(frames, faces, output, *, view="front", frame_size=(400, 400), clim=None, cmap=CMAP,
-                     title=None, engine=None, label=r"local tension  [$\kappa/R^2$]"):
+                     title=None, engine=None, label=r"local tension  [$\kappa/R^2$]", smooth=True):
     """A strip of shapes from one direction. frames: list of (vertices, face values, label); frame_size: pixel
-    size of each frame."""
+    size of each frame; smooth as in :func:`render_views`."""
     if not frames:
         raise ConfigError("no frames to render")
     if view not in VIEWS:
@@ -274,7 +307,7 @@ def render_snapshots(frames, faces, output, *, view="front", frame_size=(400, 40
     f = None
     for verts, vals, lab in frames:
         v, f, val = _check_mesh(verts, faces, vals)
-        shapes.append((v, val))
+        shapes.append((v, vertex_average(v, f, val) if smooth else val))
         labels.append(str(lab))
     n = len(shapes)
     px = (max(64, int(frame_size[0])), max(64, int(frame_size[1])))
