@@ -119,12 +119,13 @@ def _cmd_run(a):
 
     from . import mesh as M
     from .errors import ConfigError
-    from .simulate import RunConfig, run
+    from .run_config import RunConfig
+    from .simulate import run
 
     logging.basicConfig(level=logging.WARNING if a.quiet else logging.INFO, format="[vesicle run] %(message)s")
     params = {}
     if a.config:
-        from .simulate import load_config
+        from .run_config import load_config
 
         load_config(a.config)  # validates, naming the file in any error
         with open(a.config) as fh:

@@ -26,194 +26,65 @@ only when the run is complete. ``checkpoint.nc`` is rewritten atomically every `
 steps; rerunning the same command resumes from it and ends bit-identical to an uninterrupted run.
 NaN/Inf, a blow-up or an area/volume drift beyond ``max_drift`` stops the run with
 NumericalInstability, a diagnostic file ``failure.nc`` and no complete-looking trajectory.
+
+Layout: the run configuration is in :mod:`vesicle_core.run_config`, the coupled operator (:class:`IBMSolver`) in
+:mod:`vesicle_core.mobility`, the run directory's files (State, checkpoint, trajectory) in
+:mod:`vesicle_core.trajectory`, the schemes in :mod:`vesicle_core.integrators`. This module holds the step
+estimates and the driver :func:`run`, and re-exports the names it always had (``RunConfig``, ``IBMSolver``,
+``State``, ``TRAJECTORY``, ...).
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import os
 import sys
 import time as _time
-from dataclasses import asdict, dataclass, field, fields, make_dataclass
 from pathlib import Path
 
 import numpy as np
 
 from . import membrane as B
-from .errors import ConfigError, NumericalInstability
+from .errors import NumericalInstability
+from .flow import background_velocity
 from .io import atomic_to_netcdf
+from .mobility import IBMSolver
+from .run_config import SCHEMES, RunConfig, default_lambda, load_config
+from .trajectory import (
+    CHECKPOINT,
+    FAILURE,
+    PARTIAL,
+    TRAJECTORY,
+    State,
+    TrajectoryWriter,
+    load_checkpoint,
+    save_checkpoint,
+)
+
+__all__ = [
+    "CHECKPOINT",
+    "FAILURE",
+    "PARTIAL",
+    "TRAJECTORY",
+    "SCHEMES",
+    "IBMSolver",
+    "RunConfig",
+    "State",
+    "TrajectoryWriter",
+    "background_velocity",
+    "default_lambda",
+    "formula_dt",
+    "load_checkpoint",
+    "load_config",
+    "power_dt",
+    "run",
+    "save_checkpoint",
+]
 
 log = logging.getLogger("vesicle_core.simulate")
 
-TRAJECTORY = "trajectory.nc"
-PARTIAL = "trajectory.partial.nc"
-CHECKPOINT = "checkpoint.nc"
-FAILURE = "failure.nc"
 
-
-# --------------------------------------------------------------------------- configuration
-class _RunConfigRules:
-    """Parameters of one IBM run, in solver units (see module docstring): the fields, defaults and ranges of
-    :data:`vesicle_core.parameters.RUN_PARAMETERS`, checked on creation, plus the rules that tie them together."""
-
-    def __post_init__(self):
-        from .parameters import RUN_PARAMETERS
-
-        for p in RUN_PARAMETERS:  # a frozen dataclass: store the normalised value (e.g. 128.0 -> 128)
-            object.__setattr__(self, p.name, p.check(getattr(self, p.name)))
-        if self.scheme == "inextensible" and self.Re > 0:
-            raise ConfigError(f"scheme 'inextensible' solves steady Stokes (Re = 0); got Re = {self.Re:g}")
-        if self.chi == 0 and self.stretch > 0:
-            raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
-        if self.seed_spectrum != "mesh" and self.stationary_tol > 0:
-            raise ConfigError("seed_spectrum 'thermal' needs a fixed stretch (stationary_tol = 0): the seed goes on "
-                              "the shape before the frame at the reversal")
-
-    @property
-    def h(self) -> float:
-        return self.L / self.N
-
-    @property
-    def Lambda_eff(self) -> float:
-        return default_lambda(self.chi, self.scheme) if self.Lambda is None else float(self.Lambda)
-
-    @property
-    def rho_bar(self) -> float:
-        """Density in solver units: Re / chi (App. B with time in tau)."""
-        return self.Re / self.chi if self.chi > 0 else 0.0
-
-    def time_scale(self) -> float:
-        """tau per unit of the configured durations: 1/chi, or 1 when chi = 0."""
-        return 1.0 / self.chi if self.chi > 0 else 1.0
-
-    @classmethod
-    def from_dict(cls, d: dict) -> RunConfig:
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(d) - names)
-        if unknown:
-            raise ConfigError(f"unknown run parameter(s) {unknown}; allowed: {sorted(names)}")
-        return cls(**d)
-
-    def as_attrs(self) -> dict:
-        out = {}
-        for k, v in asdict(self).items():
-            out[k] = "default" if v is None else v
-        out["Lambda_eff"] = self.Lambda_eff
-        out["h"] = self.h
-        return out
-
-
-def _run_config_class():
-    from .parameters import RUN_PARAMETERS
-
-    types = {"float": float, "int": int, "str": str, "bool": bool}
-    spec = [(p.name, types[p.kind] | None if p.nullable else types[p.kind], field(default=p.default))
-            for p in RUN_PARAMETERS]
-    cls = make_dataclass("RunConfig", spec, bases=(_RunConfigRules,), frozen=True)
-    cls.__module__, cls.__doc__ = __name__, _RunConfigRules.__doc__  # so pickle and help() find it here
-    return cls
-
-
-RunConfig = _run_config_class()
-
-
-SCHEMES = ("explicit", "projection", "inextensible")
-
-
-def default_lambda(chi: float, scheme: str = "explicit") -> float:
-    """Default tension modulus of (A5) [kappa/R^2].
-
-    explicit:   the penalty alone holds the area, so the area strain sigma/Lambda must stay below ~0.2%.
-                The stretched steady state has sigma ~ 26 chi kappa/R^2 (1770 measured at chi = 67), so
-                Lambda = 1.5e4 chi with a floor of 1e5 (1e6 at chi = 67, 4e6 at chi = 268), strain ~0.18%.
-    projection: a global multiplier carries the mean tension and holds the total area exactly; the local
-                penalty only has to resist tension *differences* along the membrane, so it is 10x softer
-                (1.5e3 chi, floor 1e4), which makes the explicit step limit 40 h/Lambda 10x larger.
-    inextensible: Lambda is the area-stretch modulus of the constraint (strain sigma/Lambda), treated
-                implicitly, so it costs no time step: 5e4 chi (floor 1e6) keeps the strain near 5e-4.
-    """
-    if scheme == "inextensible":
-        return max(1.0e6, 5.0e4 * chi)
-    if scheme == "projection":
-        return max(1.0e4, 1.5e3 * chi)
-    return max(1.0e5, 1.5e4 * chi)
-
-
-def load_config(path) -> RunConfig:
-    import yaml
-
-    try:
-        with open(path) as fh:
-            d = yaml.safe_load(fh) or {}
-    except FileNotFoundError:
-        raise ConfigError(f"parameter file {path} does not exist") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"parameter file {path} is not valid YAML: {exc}") from None
-    if not isinstance(d, dict):
-        raise ConfigError(f"parameter file {path} must hold a mapping of run parameters")
-    try:
-        return RunConfig.from_dict(d)
-    except ConfigError as exc:
-        raise ConfigError(f"{path}: {exc}") from None
-
-
-# --------------------------------------------------------------------------- the coupled operator
-class IBMSolver:
-    """Membrane forces + spreading + periodic Stokes + interpolation on one array module."""
-
-    def __init__(self, faces, X0, cfg: RunConfig):
-        from .backend import get_backend
-        from .ibm import Coupler, Grid
-        from .stokes import StokesSolver
-
-        self.cfg = cfg
-        self.be = get_backend(cfg.backend, cfg.dtype, fft_workers=cfg.fft_workers)
-        xp = self.be.xp
-        self.xp = xp
-        self.grid = Grid(cfg.N, cfg.L)
-        self.stokes = StokesSolver(self.grid, self.be, rho_bar=cfg.rho_bar)
-        # reused stencil and grid buffers (no page faults per step)
-        self.coupler = Coupler(self.grid, self.be, kernel=cfg.kernel)
-        self._grid_buf = self.be.empty(self.grid.field_shape)
-        # the inextensible scheme carries the tension as an unknown: no penalty (A5) in the force
-        penalty = 0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff
-        self.membrane = B.Membrane.from_mesh(
-            xp.asarray(X0, dtype=xp.float64), faces, xp=xp, Lambda=penalty, K_volume=cfg.K_volume,
-            K_area=cfg.K_area, area_model=cfg.area_model,
-        )
-
-    def forces(self, X):
-        return self.membrane.forces(X)
-
-    def induced_displacement(self, X, F, dt, advance=True, same_points=False):
-        """J Gamma: the induced displacement of the vertices over dt (steady Stokes: J u_ind dt).
-
-        ``advance``: at finite Re, step the stored fluid state (False: steady response, state untouched).
-        ``same_points``: X is the same as in the previous call, so its stencil is reused.
-        """
-        if not same_points:
-            self.coupler.prepare(X)
-        f = self.coupler.spread(F)
-        if self.cfg.rho_bar > 0 and not advance:
-            G = self.stokes.velocity(f, out=self._grid_buf)
-            G *= dt
-        else:
-            G = self.stokes.step(f, dt, out=self._grid_buf)
-        return self.coupler.interpolate(G)
-
-    def membrane_velocity(self, X):
-        """Induced velocity of the membrane, steady Stokes, no background flow (for dt estimates)."""
-        F, _ = self.forces(X)
-        return self.induced_displacement(X, F, 1.0, advance=False)
-
-
-def background_velocity(X, rate):
-    from .flow import background_velocity as bv
-
-    return bv(X, rate)
-
-
+# --------------------------------------------------------------------------- step estimates
 def formula_dt(cfg: RunConfig, edge_mean: float, flow: bool = True) -> float:
     """Stable-step estimate (tau) measured by power iteration on the linearised operator: area penalty
     40 h/Lambda, bending 13 h^3 (edge ~ h) to 20 h^3 (edge ~ 2h), and 0.01/chi so the background flow moves a
@@ -251,187 +122,6 @@ def power_dt(solver: IBMSolver, X, iters=30, seed=0) -> tuple[float, float]:
             break
         lam = new
     return (2.0 / lam if lam > 0 else math.inf), lam
-
-
-# --------------------------------------------------------------------------- state, checkpoint, trajectory
-@dataclass
-class State:
-    X: object  # (V, 3) on the run's array module
-    t: float = 0.0  # tau
-    step: int = 0
-    phase: str = "stretch"  # "stretch" | "relax"
-    t_reverse: float = math.nan  # tau, set at the reversal
-    n_frames: int = 0
-    next_output: int = 0  # step of the next output frame
-    dt: float = 0.0
-    shape_prev: tuple = ()  # second moments at the previous output (stationarity test)
-    sigma_g: float = 0.0  # global tension multiplier of the projection scheme [kappa/R^2]
-    w: object = None  # cached M grad(A) of the projection scheme, (V, 3)
-    sigma: object = None  # per-triangle tension of the inextensible scheme, (F,)
-    sigma_prev: object = None  # the one before (warm start by extrapolation)
-    next_output_t: float = 0.0  # tau of the next frame (adaptive steps)
-    dt_steps: tuple = ()  # lengths of the last two steps (tau), for the extrapolated warm start
-    cg_iterations: list = None  # per step (inextensible)
-
-
-def _save_checkpoint(path: Path, state: State, be, u_hat):
-    import xarray as xr
-
-    data = {"X": (("n_node", "xyz"), be.asnumpy(state.X))}
-    if state.w is not None:
-        data["w"] = (("n_node", "xyz"), be.asnumpy(state.w))
-    for name in ("sigma", "sigma_prev"):
-        if getattr(state, name) is not None:
-            data[name] = (("n_face",), be.asnumpy(getattr(state, name)))
-    if state.cg_iterations:
-        data["cg_iterations"] = (("n_step",), np.asarray(state.cg_iterations, dtype=np.int32))
-    if u_hat is not None:
-        dims = ("xyz", "kx", "ky", "kz")
-        data["u_hat_re"] = (dims, u_hat.real)
-        data["u_hat_im"] = (dims, u_hat.imag)
-    attrs = {
-        "t": state.t, "step": state.step, "phase": state.phase, "t_reverse": state.t_reverse,
-        "n_frames": state.n_frames, "next_output": state.next_output, "dt": state.dt,
-        "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
-        "next_output_t": state.next_output_t,
-    }
-    if state.dt_steps:  # netCDF attributes cannot be empty
-        attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
-    atomic_to_netcdf(xr.Dataset(data, attrs=attrs), path)
-
-
-def _load_checkpoint(path: Path, xp):
-    import xarray as xr
-
-    try:
-        with xr.open_dataset(path) as ds:
-            ds.load()
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"checkpoint {path} is unreadable ({exc}); delete it to start the run afresh") from None
-    a = ds.attrs
-    st = State(
-        X=xp.asarray(ds["X"].values), t=float(a["t"]), step=int(a["step"]), phase=str(a["phase"]),
-        t_reverse=float(a["t_reverse"]), n_frames=int(a["n_frames"]), next_output=int(a["next_output"]),
-        dt=float(a["dt"]), shape_prev=tuple(np.atleast_1d(a["shape_prev"]).tolist()), sigma_g=float(a["sigma_g"]),
-        w=xp.asarray(ds["w"].values) if "w" in ds else None,
-        sigma=xp.asarray(ds["sigma"].values) if "sigma" in ds else None,
-        sigma_prev=xp.asarray(ds["sigma_prev"].values) if "sigma_prev" in ds else None,
-        next_output_t=float(a.get("next_output_t", 0.0)),
-        dt_steps=tuple(np.atleast_1d(a.get("dt_steps", np.zeros(0))).tolist()),
-        cg_iterations=[int(v) for v in ds["cg_iterations"].values] if "cg_iterations" in ds else [],
-    )
-    u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
-    return st, u_hat
-
-
-class TrajectoryWriter:
-    """Appends frames to trajectory.partial.nc (unlimited time dimension); finalize() renames it."""
-
-    FRAME_VARS = ("t_tau", "tension", "area", "volume", "area_drift", "volume_drift", "bending_energy",
-                  "tension_energy", "flow_sign", "dt_tau", "cg_iterations")
-
-    VELOCITY_VARS = ("node_ux", "node_uy", "node_uz")
-
-    def __init__(self, outdir: Path, faces, n_nodes: int, attrs: dict, resume_frames: int | None,
-                 velocity: bool = False):
-        self.path = outdir / PARTIAL
-        self.faces = np.asarray(faces)
-        self.n_nodes = int(n_nodes)
-        self.attrs = attrs
-        self.velocity = bool(velocity)
-        if resume_frames is None or not self.path.exists():
-            self._create()
-        else:
-            self._truncate(resume_frames)
-
-    def _create(self):
-        import netCDF4
-
-        tmp = self.path.with_suffix(".creating")
-        with netCDF4.Dataset(tmp, "w") as nc:
-            nc.createDimension("time", None)
-            nc.createDimension("n_node", self.n_nodes)
-            nc.createDimension("n_face", len(self.faces))
-            nc.createDimension("n_vertex_per_face", 3)
-            fv = nc.createVariable("face_node_connectivity", "i4", ("n_face", "n_vertex_per_face"))
-            fv[:] = self.faces
-            fv.cf_role = "face_node_connectivity"
-            fv.start_index = 0
-            for name in ("node_x", "node_y", "node_z"):
-                v = nc.createVariable(name, "f8", ("time", "n_node"), zlib=True, complevel=1)
-                v.units = "R"
-            if self.velocity:
-                for name in self.VELOCITY_VARS:
-                    v = nc.createVariable(name, "f8", ("time", "n_node"), zlib=True, complevel=1)
-                    v.units = "R/tau"
-                    v.long_name = "membrane velocity dX/dt of the step taken from this frame (background flow included)"
-            v = nc.createVariable("face_tension", "f4", ("time", "n_face"), zlib=True, complevel=1)
-            v.units = "kappa/R^2"
-            v.long_name = "local surface tension per triangle (penalty Lambda (A_l - A_l0)/A_l0, or the solved tension)"
-            units = {"t_tau": "tau", "tension": "kappa/R^2", "area": "R^2", "volume": "R^3", "area_drift": "1",
-                     "volume_drift": "1", "bending_energy": "kappa", "tension_energy": "kappa", "flow_sign": "1",
-                     "dt_tau": "tau", "cg_iterations": "1"}
-            for name in self.FRAME_VARS:
-                v = nc.createVariable(name, "f8", ("time",))
-                v.units = units[name]
-            for k, val in self.attrs.items():
-                nc.setncattr(k, val)
-            nc.setncattr("complete", 0)
-        os.replace(tmp, self.path)
-
-    def _truncate(self, n):
-        """Drop frames written after the checkpoint we resume from (they will be recomputed identically)."""
-        import xarray as xr
-
-        with xr.open_dataset(self.path) as ds:
-            if ds.sizes["time"] == n:
-                return
-            if ds.sizes["time"] < n:
-                raise NumericalInstability(f"{self.path} holds fewer frames than its checkpoint; "
-                                           "delete the run directory")
-            kept = ds.isel(time=slice(0, n)).load()
-        kept.encoding = {}
-        atomic_to_netcdf(kept, self.path, unlimited_dims=["time"])
-
-    def append(self, X, face_tension, scalars: dict):
-        import netCDF4
-
-        with netCDF4.Dataset(self.path, "a") as nc:
-            i = nc.dimensions["time"].size
-            nc["node_x"][i, :] = X[:, 0]
-            nc["node_y"][i, :] = X[:, 1]
-            nc["node_z"][i, :] = X[:, 2]
-            nc["face_tension"][i, :] = face_tension
-            for k in self.FRAME_VARS:
-                nc[k][i] = scalars[k]
-
-    def set_velocity(self, U):
-        """The velocity of the last frame written: the step from it is only known after the frame."""
-        import netCDF4
-
-        with netCDF4.Dataset(self.path, "a") as nc:
-            i = nc.dimensions["time"].size - 1
-            for c, name in enumerate(self.VELOCITY_VARS):
-                nc[name][i, :] = U[:, c]
-
-    def finalize(self, t_reverse_tau: float, chi: float, extra_attrs: dict) -> Path:
-        """Add the time coordinate gamma_dot (t - t_reverse), mark complete, and move to trajectory.nc."""
-        import xarray as xr
-
-        with xr.open_dataset(self.path) as ds:
-            ds = ds.load()
-        scale = chi if chi > 0 else 1.0
-        ds = ds.assign_coords(time=("time", scale * (ds["t_tau"].values - t_reverse_tau)))
-        ds["time"].attrs.update(units="1/gamma_dot" if chi > 0 else "tau",
-                                long_name="time since the flow reversal, gamma_dot (t - t0)")
-        ds = ds.set_coords("t_tau")
-        ds.attrs.update(extra_attrs)
-        ds.attrs["complete"] = 1
-        enc = {k: {"zlib": True, "complevel": 1} for k in ("node_x", "node_y", "node_z", "face_tension")}
-        final = self.path.with_name(TRAJECTORY)
-        atomic_to_netcdf(ds, final, encoding=enc)
-        self.path.unlink()
-        return final
 
 
 # --------------------------------------------------------------------------- the run
@@ -535,7 +225,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
 
     resumed = ckpt.exists()
     if resumed:
-        state, u_hat = _load_checkpoint(ckpt, xp)
+        state, u_hat = load_checkpoint(ckpt, xp)
         if u_hat is not None:
             solver.stokes.state = {"rho_bar": cfg.rho_bar, "u_hat": u_hat}
         dt = state.dt
@@ -723,7 +413,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
             if state.step % 16 == 0 and not bool(xp.isfinite(state.X).all()):
                 fail("NaN or Inf in vertex positions (time step too large?)", X)
             if state.step % cfg.checkpoint_every == 0:
-                _save_checkpoint(ckpt, state, be, solver.stokes.state["u_hat"] if cfg.rho_bar > 0 else None)
+                save_checkpoint(ckpt, state, be, solver.stokes.state["u_hat"] if cfg.rho_bar > 0 else None)
             if stop_after_steps is not None and steps_this_call >= stop_after_steps:
                 bar.close()
                 return None
