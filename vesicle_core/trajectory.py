@@ -1,5 +1,5 @@
 """What a run writes and reads back: the run directory's file names, the :class:`State` of the time loop and its
-checkpoint, and the trajectory writer.
+checkpoint, the trajectory writer and the failure diagnostic.
 
 Run directory (``vesicle run -o DIR``)
     trajectory.partial.nc  output frames appended while the run goes (unlimited ``time`` dimension)
@@ -213,3 +213,10 @@ class TrajectoryWriter:
         self.path.unlink()
         return final
 
+
+def write_failure(path: Path, X, attrs: dict) -> None:
+    """The diagnostic of a stopped run: vertex positions X (V, 3) at the failure, the message and where it
+    happened in ``attrs`` (message, step, t_tau, dt, phase)."""
+    import xarray as xr
+
+    atomic_to_netcdf(xr.Dataset({"X": (("n_node", "xyz"), X)}, attrs=attrs), path)
