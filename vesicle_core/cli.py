@@ -165,7 +165,8 @@ def _add_decompose(sub):
 
 
 def _cmd_decompose(a):
-    from .datasets import open_trajectory, spectra_from_trajectory, write_dataset
+    from .datasets import open_trajectory, write_dataset
+    from .spectra import spectra_from_trajectory
 
     with open_trajectory(a.trajectory, require_complete=True) as traj:
         ds = spectra_from_trajectory(traj, l_max=a.l_max, stride=a.stride, progress=not a.quiet,
