@@ -42,8 +42,8 @@ def _delta_from(traj, vertices, faces, delta):
 
 def spectra_from_trajectory(
     traj: xr.Dataset, l_max: int | None = None, stride: int = 1, progress: bool = False, *,
-    rule: str = "pn", weights: str = "solid_angle", threshold: float = 1e-5, delta: float | None = None,
-    map_shape: tuple[int, int] | None = None, command: str | None = None,
+    rule: str = "pn", weights: str = "solid_angle", threshold: float = H.NONTRIVIAL_THRESHOLD,
+    delta: float | None = None, map_shape: tuple[int, int] | None = None, command: str | None = None,
 ) -> xr.Dataset:
     """Spherical-harmonic analysis (Sec. V) of every ``stride``-th snapshot of a trajectory.
 
