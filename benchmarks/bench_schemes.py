@@ -29,8 +29,8 @@ import numpy as np
 import xarray as xr
 
 from vesicle_core import mesh as M
-from vesicle_core.datasets import spectra_from_trajectory
 from vesicle_core.simulate import RunConfig, run
+from vesicle_core.spectra import spectra_from_trajectory
 
 
 def inextensibility(ds):

@@ -38,7 +38,9 @@ def interleaved_ms(fns, repeats, warmup=1):
 def bench_case(N, level, backend="numpy", repeats=10, scheme="projection", L=5.0):
     from . import mesh as M
     from .integrators import SCHEMES
-    from .simulate import IBMSolver, RunConfig, State
+    from .mobility import IBMSolver
+    from .run_config import RunConfig
+    from .trajectory import State
 
     m = M.make_vesicle("icosphere", level=level)
     cfg = RunConfig(chi=67.0, N=N, L=L, scheme=scheme, backend=backend, dt=1e-6)

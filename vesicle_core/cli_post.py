@@ -1,7 +1,7 @@
-"""``vesicle figures`` and ``vesicle catalog``: the post-processing subcommands of the workflow.
+"""``vesicle figures``, ``vesicle catalog`` and ``vesicle report``: the post-processing subcommands of the workflow.
 
-Registered in :mod:`vesicle_core.cli` with ``add_figures(sub)`` and ``add_catalog(sub)``; each subcommand sets
-``func`` to a function of the parsed arguments that returns 0.
+Registered in :mod:`vesicle_core.cli` with ``add_figures(sub)``, ``add_catalog(sub)`` and ``add_report(sub)``; each
+subcommand sets ``func`` to a function of the parsed arguments that returns 0.
 
     vesicle figures dynamics SPECTRA.nc [--theory THEORY.nc] -o FIG.png [FIG.svg ...]   Fig. 3/5 style
     vesicle figures lstar FIT.nc [--measure l_star|l_peak] -o FIG.png [FIG.svg]        Fig. 4
@@ -9,26 +9,12 @@ Registered in :mod:`vesicle_core.cli` with ``add_figures(sub)`` and ``add_catalo
     vesicle figures views TRAJECTORY.nc [--spectra SPECTRA.nc | --time T] -o FIG.png   Figs. 6e/7c
     vesicle figures snapshots TRAJECTORY.nc [--times T ... | --n 6] -o FIG.png         strip over gamma_dot t
     vesicle catalog FILE.nc ... -o results/catalog.csv [--json results/catalog.json]
+    vesicle report --case ID GROUP TRAJECTORY SPECTRA THEORY ... -o docs/validation.md    the validation study
 """
 
 from __future__ import annotations
 
-import argparse
-
-from .cli_args import int_in as _int_in
-
-
-def _float(name):
-    def conv(s):
-        try:
-            v = float(s)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {s!r}") from None
-        if v != v or v in (float("inf"), float("-inf")):
-            raise argparse.ArgumentTypeError(f"{name} must be a finite number, got {s!r}")
-        return v
-
-    return conv
+from .cli_args import finite_float, int_in
 
 
 def _outputs_arg(p, formats="png, svg or pdf"):
@@ -37,11 +23,11 @@ def _outputs_arg(p, formats="png, svg or pdf"):
 
 
 def _dpi_arg(p):
-    p.add_argument("--dpi", type=_int_in("--dpi", 50, 1200), default=150, help="resolution of the PNG (default 150)")
+    p.add_argument("--dpi", type=int_in("--dpi", 50, 1200), default=150, help="resolution of the PNG (default 150)")
 
 
 def _size_arg(p, default, flag="--size", what="the rendered grid of views"):
-    p.add_argument(flag, type=_int_in(flag, 64, 8000), nargs=2, metavar=("WIDTH", "HEIGHT"),
+    p.add_argument(flag, type=int_in(flag, 64, 8000), nargs=2, metavar=("WIDTH", "HEIGHT"),
                    default=list(default), help=f"pixel size of {what} (default {default[0]} {default[1]})")
 
 
@@ -111,9 +97,9 @@ def add_figures(subparsers):
     d = sub.add_parser("dynamics", help="Fig. 3/5: sigma(t), Delta_2(t), Delta_l*(t), IBM against PA, stages marked")
     d.add_argument("spectra", help="spectra.nc of a run ('vesicle decompose')")
     d.add_argument("--theory", help="theory.nc of the same (Delta, S) ('vesicle theory')")
-    d.add_argument("--t-min", type=_float("--t-min"), default=0.0,
+    d.add_argument("--t-min", type=finite_float("--t-min"), default=0.0,
                    help="first time shown, gamma_dot (t - t0) (default 0: the reversal)")
-    d.add_argument("--t-max", type=_float("--t-max"), default=None, help="last time shown (default: all)")
+    d.add_argument("--t-max", type=finite_float("--t-max"), default=None, help="last time shown (default: all)")
     _outputs_arg(d)
     _dpi_arg(d)
     d.set_defaults(func=_cmd_dynamics)
@@ -129,7 +115,7 @@ def add_figures(subparsers):
 
     w = sub.add_parser("wrinkles", help="Fig. 8: A_p(theta, phi) maps, A_p-bar(t), Delta~_l(t) heat map")
     w.add_argument("spectra", help="spectra.nc of a run (maps need 'vesicle decompose --map')")
-    w.add_argument("--times", type=_float("--times"), nargs="+", default=None,
+    w.add_argument("--times", type=finite_float("--times"), nargs="+", default=None,
                    help="gamma_dot (t - t0) of the maps (default: t_*/2, t_* and 3 t_*/2)")
     _outputs_arg(w)
     _dpi_arg(w)
@@ -138,7 +124,7 @@ def add_figures(subparsers):
     v = sub.add_parser("views", help="Figs. 6e/7c: six views of the membrane coloured by local tension")
     v.add_argument("trajectory", help="trajectory.nc written by 'vesicle run'")
     v.add_argument("--spectra", help="spectra.nc of the run: its t_* is the default time")
-    v.add_argument("--time", type=_float("--time"), default=None,
+    v.add_argument("--time", type=finite_float("--time"), default=None,
                    help="gamma_dot (t - t0) of the frame (nearest; default t_*, else the last frame)")
     _size_arg(v, (1500, 1000))
     _engine_arg(v)
@@ -148,10 +134,10 @@ def add_figures(subparsers):
     n = sub.add_parser("snapshots", help="strip of membrane snapshots over gamma_dot t, coloured by local tension")
     n.add_argument("trajectory", help="trajectory.nc written by 'vesicle run'")
     n.add_argument("--spectra", help="spectra.nc of the run: the default times gather around its t_*")
-    n.add_argument("--times", type=_float("--times"), nargs="+", default=None,
+    n.add_argument("--times", type=finite_float("--times"), nargs="+", default=None,
                    help="gamma_dot (t - t0) of the frames (nearest; default: n-1 evenly spaced from t0 to 2 t_*, "
                         "then the last frame)")
-    n.add_argument("--n", type=_int_in("--n", 1, 24), default=6, help="number of frames without --times (default 6)")
+    n.add_argument("--n", type=int_in("--n", 1, 24), default=6, help="number of frames without --times (default 6)")
     n.add_argument("--view", choices=("front", "back", "left", "right", "top", "bottom"), default="front",
                    help="viewing direction (default front: along z)")
     _size_arg(n, (400, 400), "--frame-size", "each frame")
@@ -187,3 +173,52 @@ def add_catalog(subparsers):
     p.add_argument("--description", default=None, help="description stored in the JSON")
     p.set_defaults(func=_cmd_catalog)
     return p
+
+
+# --------------------------------------------------------------------------- report (validation)
+def add_report(sub):
+    p = sub.add_parser("report", help="write the validation study (docs/validation.md) from produced datasets")
+    p.add_argument("-o", "--output", required=True, help="markdown file to write (figures are copied beside it)")
+    p.add_argument("--case", nargs=5, action="append", required=True,
+                   metavar=("CASE_ID", "GROUP", "TRAJECTORY", "SPECTRA", "THEORY"),
+                   help="one case: id, group (fine | coarse | box), trajectory.nc, spectra.nc, theory.nc (repeatable)")
+    p.add_argument("--fit", nargs=2, action="append", metavar=("GROUP", "FIT"), default=[],
+                   help="fit.nc of the fine or coarse group (repeatable)")
+    p.add_argument("--box", nargs=2, metavar=("SMALL", "LARGE"), help="trajectories of the periodic-box test")
+    p.add_argument("--figure", nargs=2, action="append", metavar=("PATH", "CAPTION"), default=[],
+                   help="figure to copy next to the report and embed (repeatable)")
+    p.add_argument("--resolution-note", default="", help="one line on the resolution used")
+    p.add_argument("--wall-time-note", default="", help="one line on how long the study took")
+    p.set_defaults(func=_cmd_report)
+
+
+def _cmd_report(a):
+    import shutil
+    from pathlib import Path
+
+    from .errors import ConfigError
+    from .validation import write_report
+
+    out = Path(a.output)
+    figdir = out.parent / "figures" / out.stem
+    figdir.mkdir(parents=True, exist_ok=True)
+    figures = []
+    for path, caption in a.figure:
+        src = Path(path)
+        if not src.exists():
+            raise ConfigError(f"--figure {path} does not exist")
+        name = f"{src.parent.name}_{src.name}" if src.parent.name not in ("figures", "") else src.name
+        shutil.copyfile(src, figdir / name)
+        figures.append({"path": f"figures/{out.stem}/{name}", "caption": caption})
+    manifest = {
+        "title": "Validation against the reference paper",
+        "resolution_note": a.resolution_note,
+        "cases": [{"case_id": c, "group": g, "trajectory": t, "spectra": s, "theory": th} for c, g, t, s, th in a.case],
+        "fits": dict(a.fit),
+        "box": {"small": a.box[0], "large": a.box[1]} if a.box else None,
+        "figures": figures,
+        "discussion": [f"- {a.wall_time_note}"] if a.wall_time_note else [],
+    }
+    write_report(manifest, out)
+    print(f"wrote {out}")
+    return 0

@@ -102,6 +102,8 @@ __all__ = [
 WEIGHTS = ("solid_angle", "paper")
 RULES = ("pn", "vertex", "centroid")
 AMPLITUDE_AT = ("triangles", "nodes", "vertices")
+#: |u_lm| above which a mode counts as nontrivial: the l_max of Sec. V.A is the largest such l at t_*
+NONTRIVIAL_THRESHOLD = 1e-5
 
 
 class ResolutionWarning(UserWarning):
@@ -452,7 +454,8 @@ def decompose(vertices, faces, l_max, delta=None, R=None, center=None, *, rule="
 
 
 def delta_l(u) -> np.ndarray:
-    """Delta_l = sum_m |u_lm|^2, shape (..., l_max+1); NaN entries (|m| > l in datasets) are ignored."""
+    """Delta_l = sum_m |u_lm|^2 over the last axis, shape (..., l_max+1); NaN entries (|m| > l in datasets) are
+    ignored. The one implementation for the simulation spectra and the PA (``theory.delta_l`` is this function)."""
     u = np.asarray(u)
     return np.nansum(np.abs(u) ** 2, axis=-1)
 
@@ -482,8 +485,10 @@ def t_star(time, Delta_2) -> float:
     return float(np.asarray(time, float)[i]) if i >= 0 else float("nan")
 
 
-def l_max_nontrivial(u, threshold=1e-5):
-    """Largest l with some |u_lm| > threshold (Sec. V.A); -1 if none. Works on (..., l, m) arrays."""
+def l_max_nontrivial(u, threshold=NONTRIVIAL_THRESHOLD):
+    """Largest l with some |u_lm| > threshold (Sec. V.A); -1 if none. Works on (..., l, m) arrays (an m axis of
+    length 1 takes max_m |u_lm|). The one implementation for the simulation spectra and the PA
+    (``theory.nontrivial_l_max`` is this function)."""
     a = np.abs(np.nan_to_num(np.asarray(u), nan=0.0))
     big = (a > threshold).any(axis=-1)  # (..., l)
     L = big.shape[-1]
@@ -680,7 +685,7 @@ def field_spectrum(vertices, faces, values, l_max, center=None, R=None, *, weigh
 
 
 def analyze_snapshot(vertices, faces, l_max, delta=None, R=None, *, rule="pn", weights="solid_angle",
-                     threshold=1e-5, warn=True) -> dict:
+                     threshold=NONTRIVIAL_THRESHOLD, warn=True) -> dict:
     """Everything Sec. V computes for one snapshot, with one pass of the harmonic recurrence for both fields.
 
     The ellipsoid is fitted to the vertices with area weights (vertex area = 1/3 of the adjacent triangles), so

@@ -1,12 +1,22 @@
-"""The coupled IBM operator as a mobility: ``velocity = M(X) F`` (Lagrangian forces in, vertex velocities out).
+"""The coupled IBM operator: the run's :class:`IBMSolver` and its steady part as a mobility ``velocity = M(X) F``.
+
+:class:`IBMSolver` lives here, next to :class:`IBMMobility`, because both are the same spread-Stokes-interpolate path
+on one Grid, Backend and Coupler; the solver adds the membrane forces and the fluid state of finite Re.
+
+:class:`IBMSolver` (one per run) builds the array module, grid, Stokes solver, coupler and membrane of a
+:class:`~vesicle_core.run_config.RunConfig` and gives the integrators the forces F(X) (A7) and the induced
+displacement J Gamma of eq. (29): spread (28), the exponential update (23) of the periodic Stokes flow (its steady
+limit at Re = 0), interpolate (16). :class:`IBMMobility` is the mobility (Lagrangian forces in, vertex velocities
+out):
 
     M(X) = J(X) L^{-1} xi S(X)        interpolate (16) . periodic steady Stokes (21-23) . spread (28)
 
 M is symmetric positive semi-definite in the Lagrangian inner product, because spreading and interpolation
 share one stencil (S = J^T / h^3) and the Stokes operator xi / lam_k is symmetric positive semi-definite.
-The integrators of :mod:`vesicle_core.integrators` and the tension solve of :mod:`vesicle_core.tension`
+The inextensible integrator of :mod:`vesicle_core.integrators` and the tension solve of :mod:`vesicle_core.tension`
 use only :meth:`IBMMobility.prepare` and :meth:`IBMMobility.apply`, so another mobility (a boundary
-integral, a wall-bounded solver) can be swapped in without touching them.
+integral, a wall-bounded solver) can be swapped in without touching them; the fixed-step integrators use
+:meth:`IBMSolver.induced_displacement`, the time-integrated displacement of eq. (29) at finite Re.
 
 :func:`pair_table` measures the IBM's own pair mobility M(r) = f(r) I + g(r) r_hat r_hat, averaged over
 positions relative to the grid, and :func:`local_mobility_matrix` assembles the near-field part of M
@@ -17,8 +27,14 @@ positions relative to the grid, and :func:`local_mobility_matrix` assembles the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+from . import membrane as B
+
+if TYPE_CHECKING:
+    from .run_config import RunConfig
 
 
 class IBMMobility:
@@ -45,6 +61,59 @@ class IBMMobility:
             u = self.stokes.step(f, scale, out=self._buf)
         self.n_products += 1
         return self.coupler.interpolate(u)
+
+
+class IBMSolver:
+    """Membrane forces + spreading + periodic Stokes + interpolation on one array module.
+
+    ``faces``, ``X0``: the mesh (its shape X0 is the reference of the area penalty and the volume); the inextensible
+    scheme carries the tension as an unknown, so its membrane has no penalty (A5).
+    """
+
+    def __init__(self, faces, X0, cfg: RunConfig):
+        from .backend import get_backend
+        from .ibm import Coupler, Grid
+        from .stokes import StokesSolver
+
+        self.cfg = cfg
+        self.be = get_backend(cfg.backend, cfg.dtype, fft_workers=cfg.fft_workers)
+        xp = self.be.xp
+        self.xp = xp
+        self.grid = Grid(cfg.N, cfg.L)
+        self.stokes = StokesSolver(self.grid, self.be, rho_bar=cfg.rho_bar)
+        # reused stencil and grid buffers (no page faults per step)
+        self.coupler = Coupler(self.grid, self.be, kernel=cfg.kernel)
+        self._grid_buf = self.be.empty(self.grid.field_shape)
+        # the inextensible scheme carries the tension as an unknown: no penalty (A5) in the force
+        penalty = 0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff
+        self.membrane = B.Membrane.from_mesh(
+            xp.asarray(X0, dtype=xp.float64), faces, xp=xp, Lambda=penalty, K_volume=cfg.K_volume,
+            K_area=cfg.K_area, area_model=cfg.area_model,
+        )
+
+    def forces(self, X):
+        return self.membrane.forces(X)
+
+    def induced_displacement(self, X, F, dt, advance=True, same_points=False):
+        """J Gamma: the induced displacement of the vertices over dt (steady Stokes: J u_ind dt).
+
+        ``advance``: at finite Re, step the stored fluid state (False: steady response, state untouched).
+        ``same_points``: X is the same as in the previous call, so its stencil is reused.
+        """
+        if not same_points:
+            self.coupler.prepare(X)
+        f = self.coupler.spread(F)
+        if self.cfg.rho_bar > 0 and not advance:
+            G = self.stokes.velocity(f, out=self._grid_buf)
+            G *= dt
+        else:
+            G = self.stokes.step(f, dt, out=self._grid_buf)
+        return self.coupler.interpolate(G)
+
+    def membrane_velocity(self, X):
+        """Induced velocity of the membrane, steady Stokes, no background flow (for dt estimates)."""
+        F, _ = self.forces(X)
+        return self.induced_displacement(X, F, 1.0, advance=False)
 
 
 @dataclass(frozen=True)

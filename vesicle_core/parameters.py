@@ -1,6 +1,6 @@
 """Every run and mesh parameter, defined once: name, default, unit, allowed values and meaning.
 
-``RunConfig`` (simulate.py) takes its fields and checks from :data:`RUN_PARAMETERS`; the workflow takes its
+``RunConfig`` (run_config.py) takes its fields and checks from :data:`RUN_PARAMETERS`; the workflow takes its
 defaults and its list of keys from here; the config schema's ``run``/``mesh`` sections and the parameter tables
 of config/README.md are generated from these tables (``python -m vesicle_core.parameters --write``), and
 tests/test_parameters.py fails when any of them drifts. ``vesicle params`` prints the tables with defaults.

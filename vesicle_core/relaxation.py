@@ -75,7 +75,8 @@ def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3
     the grid. ``sigma0``: a uniform tension added as the force sigma0 H (both membranes).
     """
     from . import membrane as B
-    from .simulate import IBMSolver, RunConfig
+    from .mobility import IBMSolver
+    from .run_config import RunConfig
 
     check_range("l", l, 2, 200, integer=True)
     v, f = _sphere(family, n_vertices, seed)

@@ -93,7 +93,9 @@ Fig. 4's sweep (15 S in [100, 9500], Delta = 0.116) gives l_* ~ S^0.43 by eq. (3
 Public API: :func:`gamma_l`, :func:`a_l`, :func:`thermal_variance`, :func:`initial_state`, :func:`delta_l`,
 :func:`global_tension`, :func:`mode_rhs`, :func:`nontrivial_l_max`, :func:`characteristic_l` (= :func:`l_star`),
 :func:`solve`, :func:`run_theory`, :func:`stage1_summary`, :func:`sweep`, :func:`default_l_max`,
-:func:`default_t_end`.
+:func:`default_t_end`. :func:`delta_l` and :func:`nontrivial_l_max` are ``harmonics.delta_l`` and
+``harmonics.l_max_nontrivial`` (and :func:`characteristic_l` serves harmonics), so the PA and the simulation
+spectra compute Delta_l, l_max and l_* with the same code.
 """
 
 from __future__ import annotations
@@ -105,6 +107,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import ConfigError, check_range
+from .harmonics import NONTRIVIAL_THRESHOLD, delta_l
+from .harmonics import l_max_nontrivial as nontrivial_l_max
 from .units import Params, chi_from_S
 
 __all__ = [
@@ -133,7 +137,6 @@ NORMALISATIONS = {"area": 2.0, "unit": 1.0}
 AMPLITUDES = ("fixed", "gaussian")
 THERMAL = ("literal", "physical")
 METHODS = ("eq31", "peak")
-NONTRIVIAL_THRESHOLD = 1e-5
 
 _NORMALISATION_TEXT = {
     "area": "sum_{l>=2,m} |u_lm|^2 = 2 (scaled amplitudes of eq. 10 carrying the excess area Delta)",
@@ -231,12 +234,6 @@ def initial_state(l_max, S, *, delta=None, seed=0, kT_over_kappa=None, amplitude
     return u
 
 
-def delta_l(u):
-    """Delta_l = sum_m |u_lm|^2 over the last axis (NaN entries ignored); shape (..., l_max+1)."""
-    u = np.asarray(u)
-    return np.nansum(np.abs(u) ** 2, axis=-1)
-
-
 def global_tension(u, S_t):
     """Global tension of eq. (12) for amplitudes u (..., l_max+1, 2 l_max+1) and flow strength S(t) [kappa/R^2]."""
     u = np.asarray(u)
@@ -262,16 +259,6 @@ def mode_rhs(u, S_t, sigma=None):
     du[..., 2, L - 2] += S_t
     du[..., :2, :] = 0.0
     return du
-
-
-def nontrivial_l_max(u, threshold=NONTRIVIAL_THRESHOLD):
-    """Largest l with some |u_lm| > threshold (Sec. V.A); -1 if none. Works on (..., l, m) arrays."""
-    a = np.abs(np.nan_to_num(np.asarray(u), nan=0.0))
-    big = (a > threshold).any(axis=-1)
-    L = big.shape[-1]
-    last = L - 1 - np.argmax(big[..., ::-1], axis=-1)
-    out = np.where(big.any(axis=-1), last, -1)
-    return int(out) if np.ndim(out) == 0 else out.astype(int)
 
 
 def characteristic_l(Delta_l, l_max=None, *, l_min=3, method="eq31"):
@@ -489,8 +476,7 @@ def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, ampli
     sol.Delta_l_star = sol.delta_l(s_star)
     sol.u_absmax_star = sol.u_absmax(s_star)
     sol.sigma_star = float(sol.sigma(s_star))
-    big = np.flatnonzero(sol.u_absmax_star > threshold)
-    sol.l_max_nontrivial = int(big.max()) if big.size else -1
+    sol.l_max_nontrivial = nontrivial_l_max(sol.u_absmax_star[:, None], threshold)  # max_m |u_lm| as the m axis
     if sol.l_max_nontrivial >= L:
         warnings.warn(f"modes up to the truncation l_max = {L} are nontrivial at t_*; raise l_max", stacklevel=2)
     sol.l_star = characteristic_l(sol.Delta_l_star, sol.l_max_nontrivial, method="eq31")
@@ -522,9 +508,7 @@ def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kapp
     time = s * sol.chi
     D = sol.delta_l(s)
     sig = sol.sigma(s)
-    amax = sol.u_absmax(s)
-    big = amax > NONTRIVIAL_THRESHOLD
-    lmax_t = np.where(big.any(axis=-1), L - np.argmax(big[:, ::-1], axis=-1), -1)
+    lmax_t = nontrivial_l_max(sol.u_absmax(s)[..., None])  # max_m |u_lm| as the m axis
     lstar_t = characteristic_l(D, lmax_t)
     l = np.arange(L + 1)
     m = np.arange(-L, L + 1)

@@ -8,6 +8,11 @@
 #   cache: "omit-software"  when the workflow runs with --cache (all eligible rules, or `--cache simulate`), and
 #   benchmark: results/benchmarks/simulate/{case_id}.tsv  otherwise (the default).
 # The run's own timing is recorded in every trajectory.nc either way (attrs steps, wall_time_s_last_call).
+# One definition with computed directive values does not work (checked on Snakemake 9.27): `cache: False` would
+# switch caching off, but the benchmark directive has no "no file" value (None and [] raise AttributeError in
+# Rule.benchmark; "" is taken with an "Empty file path" warning and only works because the empty path happens to
+# be falsy), and a rule body cannot hold an `if`. The two copies share their params and shell command below; keep
+# the rest equal.
 
 SIMULATE_CACHED = _caching_requested("simulate")
 
