@@ -1,4 +1,4 @@
-"""The ``vesicle`` command: mesh | run | decompose | theory | fit | bench.
+"""The ``vesicle`` command: mesh | run | decompose | theory | fit | figures | catalog | report | bench | params.
 
 Every step of the Snakemake workflow calls one of these subcommands, so each can also be run by
 hand. Bad arguments exit with status 2 and a message that names the argument and its allowed range.
