@@ -470,10 +470,13 @@ def _render_decay(summary, f):
             d = _decay(f, r["case_id"])
             rows.append([S, r["N"], *(d if d else (None, None, None)), pa, paper])
     md.append(_table(["S", "N", "a", "95% low", "95% high", "this PA", "paper (IBM)"], rows))
-    finest = [row for row in rows if row[1] == max(r[1] for r in rows) and row[2] is not None]
+    n_max = max(r[1] for r in rows) if rows else None
+    finest = [row for row in rows if row[1] == n_max]
     if finest:
-        text = "; ".join(f"S = {row[0]:g}: a = {row[2]:.2f} against the paper's {row[6]} and this PA's "
-                         f"{_fmt(row[5])}" for row in finest)
+        text = "; ".join((f"S = {row[0]:g}: a = {row[2]:.2f} [{row[3]:.2f}, {row[4]:.2f}]"
+                          if row[2] is not None and math.isfinite(row[2]) else
+                          f"S = {row[0]:g}: no clean stage 2 to fit")
+                         + f" (paper {_fmt(row[6])}, this PA {_fmt(row[5])})" for row in finest)
         md += ["", f"Finding (finest rung): {text}."]
     md.append("")
     return md
@@ -547,8 +550,8 @@ def _render_variations(rows):
         b = base.get((r["S"], r["N"]))
         what = f"{r['tag']} ({r['kernel']}, {r['scheme']}, {r['vertices']} vertices)"
         if b:
-            table.append([what, r["S"], r["N"], b["sim_l_star"], r["sim_l_star"], r["sim_l_star"] / b["sim_l_star"] - 1,
-                          b["sim_t_star"], r["sim_t_star"]])
+            table.append([what, r["S"], r["N"], b["sim_l_star"], r["sim_l_star"],
+                          f"{r['sim_l_star'] / b['sim_l_star'] - 1:+.1%}", b["sim_t_star"], r["sim_t_star"]])
             finding.append(f"{r['tag']} {r['sim_l_star'] / b['sim_l_star'] - 1:+.1%}")
     md.append(_table(["change", "S", "N", "l_* (ladder)", "l_* (changed)", "relative", "t_* (ladder)",
                       "t_* (changed)"], table))
@@ -585,11 +588,13 @@ def _render_cutoff(c, f):
     md.append(_table(["l_max", "b", "95% low", "95% high", "cutoff caps l_* from S ="], rows))
     hit = [r for r in c["rows"] if r["low"] <= PAPER_EXPONENT_PA <= r["high"]]
     if hit:
-        caps = [r["active_from"] for r in hit if r["active_from"]]
+        capped = [r for r in hit if r["active_from"]]
+        caps = ", ".join(f"l_max = {r['l_max']} from S = {r['active_from']:g}" for r in capped)
         md += ["", f"Finding: cutoffs l_max = {', '.join(str(r['l_max']) for r in hit)} give intervals that contain "
                f"the paper's PA exponent {PAPER_EXPONENT_PA}; "
-               + (f"each of them caps l_* from S = {min(caps):g} on, so this is a truncation effect, not a plateau."
-                  if len(caps) == len(hit) else "some of them leave every S untruncated.")]
+               + (f"every one of them caps l_* inside the S range ({caps}), so the agreement is a truncation "
+                  "effect, not a converged value." if len(capped) == len(hit) else
+                  f"{len(hit) - len(capped)} of them leave every S untruncated.")]
     else:
         md += ["", f"Finding: no cutoff in the table gives an interval containing {PAPER_EXPONENT_PA}."]
     md.append("")
