@@ -408,17 +408,24 @@ def _render_ladder(summary, data, manifest):
                          [[r["N"], r["h"], r["vertices"], r["sim_l_star"], r["sim_l_peak"], r["sim_t_star"],
                            r["steps"], r["wall_s"] / 60] for r in s["rungs"]]))
         e2, e1 = s["h2"], s["h1"]
-        md += ["", _table(["", "l_*", "95% low", "95% high", "paper IBM", "this PA", "verdict (10%)"],
-                          [["finest rung", s["rungs"][-1]["sim_l_star"], "-", "-", s["paper_ibm"], s["pa"],
-                            s["finest_verdict"]],
-                           ["extrapolated, h^2", e2["value"], e2["low"], e2["high"], s["paper_ibm"], s["pa"],
-                            s["extrapolated_verdict"]],
-                           ["extrapolated, h", e1["value"], e1["low"], e1["high"], s["paper_ibm"], s["pa"], "-"]]),
+        def rel(x):
+            return f"{x / s['paper_ibm'] - 1:+.1%}" if s["paper_ibm"] and math.isfinite(x) else "-"
+
+        md += ["", _table(["", "l_*", "95% low", "95% high", "paper IBM", "against paper", "this PA",
+                           "verdict (10%)"],
+                          [["finest rung", s["rungs"][-1]["sim_l_star"], "-", "-", s["paper_ibm"],
+                            rel(s["rungs"][-1]["sim_l_star"]), s["pa"], s["finest_verdict"]],
+                           ["extrapolated, h^2", e2["value"], e2["low"], e2["high"], s["paper_ibm"], rel(e2["value"]),
+                            s["pa"], s["extrapolated_verdict"]],
+                           ["extrapolated, h", e1["value"], e1["low"], e1["high"], s["paper_ibm"], rel(e1["value"]),
+                            s["pa"], "-"]]),
                ""]
         inc = s["increments"]
         shrinking = all(b < a for a, b in zip(inc, inc[1:], strict=False)) if len(inc) > 1 else False
-        md.append(f"Finding: l_* changes by {', '.join(f'{d:+.2f}' for d in inc)} from rung to rung "
-                  f"({'shrinking steps' if shrinking else 'steps that do not shrink monotonically'}); the finest rung "
+        trend = ("one step only" if len(inc) < 2 else "shrinking steps" if shrinking else
+                 "steps that do not shrink monotonically")
+        md.append(f"Finding: l_* changes by {', '.join(f'{d:+.2f}' for d in inc)} from rung to rung ({trend}); "
+                  f"the finest rung ({rel(s['rungs'][-1]['sim_l_star'])}) "
                   f"is {_verdict_words(s['finest_verdict'])} the paper's {s['paper_ibm']}, and the h^2 extrapolation "
                   f"{e2['value']:.1f} [{e2['low']:.1f}, {e2['high']:.1f}] is "
                   f"{_verdict_words(s['extrapolated_verdict'])} it; the two extrapolation models differ by "
