@@ -408,8 +408,8 @@ def _render_ladder(summary, data, manifest):
                          [[r["N"], r["h"], r["vertices"], r["sim_l_star"], r["sim_l_peak"], r["sim_t_star"],
                            r["steps"], r["wall_s"] / 60] for r in s["rungs"]]))
         e2, e1 = s["h2"], s["h1"]
-        def rel(x):
-            return f"{x / s['paper_ibm'] - 1:+.1%}" if s["paper_ibm"] and math.isfinite(x) else "-"
+        def rel(x, paper=s["paper_ibm"]):
+            return f"{x / paper - 1:+.1%}" if paper and math.isfinite(x) else "-"
 
         md += ["", _table(["", "l_*", "95% low", "95% high", "paper IBM", "against paper", "this PA",
                            "verdict (10%)"],
