@@ -107,7 +107,9 @@ COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_lev
 NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "delta_mesh", "l_star", "t_star")
 INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices")
 RUN_KINDS = ("trajectory", "spectra")
-DEFAULT_KERNEL = "peskin4"  # the only kernel before RunConfig.kernel existed (files without a 'kernel' attribute)
+# the only kernel before RunConfig.kernel existed (files without a 'kernel' attribute)
+from .kernels import DEFAULT_KERNEL  # noqa: E402
+
 KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")
 ESMCAT_VERSION = "0.1.0"
 TAG_PATTERN = r"[A-Za-z0-9][A-Za-z0-9-]*"

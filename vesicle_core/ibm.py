@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError, check_range
-from .kernels import KERNELS
+from .kernels import DEFAULT_KERNEL, KERNELS
 from .kernels import stencil as _kernel_stencil
 
 STENCIL_WIDTH = 4  # Peskin's 4-point kernel, eq. (27): the default
@@ -103,7 +103,7 @@ class Stencil:
         return int(self.idx.shape[0])
 
 
-def prepare(X, grid: Grid, backend, out: Stencil | None = None, kernel: str = "peskin4") -> Stencil:
+def prepare(X, grid: Grid, backend, out: Stencil | None = None, kernel: str = DEFAULT_KERNEL) -> Stencil:
     """Stencil of the 4-point kernel (26)-(27) around the Lagrangian points X (M, 3).
 
     Computed once per time step and shared by spreading (28) and interpolation (29).
@@ -266,7 +266,7 @@ class Coupler:
     the grid returned by :meth:`spread` are overwritten by the next call of the same method.
     """
 
-    def __init__(self, grid: Grid, backend, kernel: str = "peskin4"):
+    def __init__(self, grid: Grid, backend, kernel: str = DEFAULT_KERNEL):
         self.grid = grid
         self.backend = backend
         self.kernel = kernel

@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from .flow import background_velocity
+from .kernels import DEFAULT_KERNEL
 
 
 class Integrator(abc.ABC):
@@ -100,7 +101,8 @@ class Projection(Integrator):
         return super().face_tension(state, geo) + state.sigma_g
 
 
-def fastest_growth_rate(sigma_mean: float, l_max: int, h: float = 0.0, kernel: str = "peskin4") -> tuple[float, int]:
+def fastest_growth_rate(sigma_mean: float, l_max: int, h: float = 0.0,
+                        kernel: str = DEFAULT_KERNEL) -> tuple[float, int]:
     """Largest growth rate -(Gamma_l + A_l sigma) (eq. 11) over 2 <= l <= l_max [1/tau] and its l.
 
     With h > 0 each rate is multiplied by the kernel's measured mode damping exp(-(l h / a)^2)

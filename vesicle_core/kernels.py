@@ -47,6 +47,8 @@ def delta3(r, h, xp=None):
 
 
 KERNELS = {"peskin4": 4, "roma3": 3, "bao6": 6}  # name -> support width (nodes per axis)
+#: the paper's kernel, eq. (27): the default of every function here and of the run parameter `kernel`
+DEFAULT_KERNEL = "peskin4"
 
 # How far each kernel resolves a membrane mode: the IBM's relaxation rate of a sphere mode Y_l0 over the
 # linear theory follows exp(-(l h / a)^2) with this a (fitted over l h = 0.23-1.56 at N = 32 and 64, edge ~ 2h,
@@ -54,7 +56,7 @@ KERNELS = {"peskin4": 4, "roma3": 3, "bao6": 6}  # name -> support width (nodes 
 RESOLUTION_LENGTH = {"peskin4": 1.04, "roma3": 1.35, "bao6": 0.90}
 
 
-def mode_damping(l, h, kernel="peskin4"):
+def mode_damping(l, h, kernel=DEFAULT_KERNEL):
     """IBM / theory rate ratio of a membrane mode l on a grid of spacing h (in R), the fit above."""
     return np.exp(-((np.asarray(l, dtype=float) * h / RESOLUTION_LENGTH[kernel]) ** 2))
 _BAO_K = 59.0 / 60.0 - math.sqrt(29.0) / 20.0
@@ -85,7 +87,7 @@ def _bao6_weights(r, xp=np):
     return xp.stack([pp2, pp1, p0, pm1, pm2, pm3], axis=-1)
 
 
-def phi_kernel(r, kernel="peskin4", xp=None):
+def phi_kernel(r, kernel=DEFAULT_KERNEL, xp=None):
     """The 1D kernel ``kernel`` at distances r (in h), elementwise."""
     xp = xp or _xp_of(r)
     if kernel == "peskin4":
@@ -101,7 +103,7 @@ def phi_kernel(r, kernel="peskin4", xp=None):
     raise ValueError(f"kernel must be one of {tuple(KERNELS)}, got {kernel!r}")
 
 
-def stencil(X, h, N, origin=0.0, xp=None, kernel="peskin4"):
+def stencil(X, h, N, origin=0.0, xp=None, kernel=DEFAULT_KERNEL):
     """Indices and weights of a kernel (default Peskin's 4-point) around Lagrangian points.
 
     Grid node ``m`` along an axis sits at ``origin + m h`` and the grid is periodic with N nodes.

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .errors import ConfigError, check_range
+from .kernels import DEFAULT_KERNEL, KERNELS
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ def _num(x) -> str:
 
 
 _SCHEMES = ("explicit", "projection", "inextensible")
-_KERNELS = ("peskin4", "roma3", "bao6")
+_KERNELS = tuple(KERNELS)
 
 #: parameters of one IBM run (``vesicle run``, ``RunConfig``), in solver units (R, kappa, tau = mu R^3 / kappa)
 RUN_PARAMETERS: tuple[Parameter, ...] = (
@@ -151,7 +152,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "kernel",
-        "peskin4",
+        DEFAULT_KERNEL,
         "str",
         "regularised delta: Peskin's 4-point (eq. 27), Roma-Peskin-Berger 3-point, "
         "Bao-Kaye-Peskin 6-point (kernels.py)",

@@ -29,6 +29,7 @@ from functools import lru_cache
 import numpy as np
 
 from .errors import ConfigError, check_range
+from .kernels import DEFAULT_KERNEL
 
 
 def clean_mobility(l):
@@ -68,7 +69,7 @@ class RateResult:
 
 
 def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3, family="quasiuniform",
-              seed=0, backend="numpy", Lambda=1e5, kernel="peskin4") -> RateResult:
+              seed=0, backend="numpy", Lambda=1e5, kernel=DEFAULT_KERNEL) -> RateResult:
     """IBM relaxation rate of r = 1 + eps Y_l0 on an N^3 grid of edge L (one Stokes solve, or a tension solve).
 
     The mesh axis is tilted away from the grid axes (a fixed rotation), so the mode does not line up with
@@ -145,7 +146,7 @@ def l_res(ratios: dict, tol=0.05) -> int:
 
 
 def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.05, box_factor=None,
-                     kernel="peskin4"):
+                     kernel=DEFAULT_KERNEL):
     """Rate ratios IBM/theory per (N, l) and l_res per N; ``box_factor[l]`` divides out the periodic-box effect.
 
     ``n_vertices_of(N)``: the mesh for each grid (default: edge ~ 2h, the project's rule).

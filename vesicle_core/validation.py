@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .kernels import DEFAULT_KERNEL
+
 #: published values (Figs. 3, 4, 5; Sec. V.A)
 PAPER_L_STAR = {  # (Delta, S) -> (PA, IBM)
     (0.116, 553.0): (14, 15),
@@ -149,7 +151,7 @@ def _run_row(case, traj, spec, theo):
         "tag": (parse_case_id(case["case_id"]) or {}).get("tag"),
         "delta_mesh": float(traj.attrs.get("delta", math.nan)), "S": S, "chi": float(traj.attrs.get("chi", math.nan)),
         "N": N, "L": L, "h": L / N if N > 0 else math.nan, "vertices": int(traj.sizes["n_node"]),
-        "family": str(traj.attrs.get("mesh_family", "?")), "kernel": str(traj.attrs.get("kernel", "peskin4")),
+        "family": str(traj.attrs.get("mesh_family", "?")), "kernel": str(traj.attrs.get("kernel", DEFAULT_KERNEL)),
         "seed_spectrum": str(traj.attrs.get("seed_spectrum", "mesh")),
         "seed_scale": float(traj.attrs.get("seed_scale", 1.0)),
         "sim_l_star": float(spec["l_star"]), "sim_l_peak": float(spec.get("l_peak", math.nan)),
