@@ -83,6 +83,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ConfigError, VesicleError
+from .kernels import DEFAULT_KERNEL  # also the kernel of files written before RunConfig.kernel existed
 from .parameters import MESH_PARAMETERS, RUN_PARAMETERS
 from .parameters import defaults as parameter_defaults
 
@@ -107,8 +108,6 @@ COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_lev
 NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "delta_mesh", "l_star", "t_star")
 INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices")
 RUN_KINDS = ("trajectory", "spectra")
-# the only kernel before RunConfig.kernel existed (files without a 'kernel' attribute)
-from .kernels import DEFAULT_KERNEL  # noqa: E402
 
 KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")
 ESMCAT_VERSION = "0.1.0"
