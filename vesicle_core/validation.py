@@ -325,7 +325,7 @@ def _fig_lstar_vs_h(summary, path):
         h = np.array([r["h"] for r in s["rungs"]])
         y = np.array([r["sim_l_star"] for r in s["rungs"]])
         ax.plot(h, y, "o-", color=col, label=f"IBM, S = {S:g}")
-        hh = np.linspace(0, h.max(), 50)
+        hh = np.linspace(0, 1.15 * np.sort(h)[:3].max(), 50)  # the fits cover the finest three rungs only
         for e, ls in ((s["h2"], "--"), (s["h1"], ":")):
             if math.isfinite(e["value"]):
                 ax.plot(hh, e["value"] + e["slope"] * hh ** e["order"], ls, color=col, lw=1,
@@ -341,6 +341,7 @@ def _fig_lstar_vs_h(summary, path):
     ax.set_xlabel("grid spacing h [R]")
     ax.set_ylabel("l_* (eq. 31)")
     ax.set_xlim(left=-0.002)
+    ax.set_ylim(bottom=0)
     ax.legend(fontsize=7)
     ax.set_title("Resolution ladder: l_* against h (L = 5 R, edge ~ 2 h)")
     fig.tight_layout()
