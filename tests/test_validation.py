@@ -96,3 +96,37 @@ def test_seed_and_variation_findings():
     base = 28.0 - 4000.0 * (5.0 / 128) ** 2
     assert "Wrinkle seeds" in text and f"{20.0 / base - 1:+.1%}" in text
     assert "One change at a time" in text and f"kernel-roma3 {16.0 / base - 1:+.1%}" in text
+
+
+# --------------------------------------------------------------------------- box: the tension and its image law
+def test_image_extrapolation_recovers_the_unbounded_value():
+    from vesicle_core.validation import image_extrapolation
+
+    def y(L):
+        return 1300.0 + 2.5e4 / L**3
+
+    assert abs(image_extrapolation(5.0, y(5.0), 7.03125, y(7.03125)) - 1300.0) < 1e-9
+    # the L^-3 law, not a linear one: a 1/L series is not recovered
+    assert abs(image_extrapolation(5.0, 1300 + 100 / 5.0, 7.0, 1300 + 100 / 7.0) - 1300.0) > 5.0
+
+
+def test_pa_stretch_tension_mirrors_the_reversed_tension():
+    """After the reversal the PA starts from the same shape with the flow reversed: sigma(0+) = -(S + Gamma_2)/A_2,
+    so the stretch value (S - Gamma_2)/A_2 differs from -sigma(0+) by 2 Gamma_2 / A_2 (eq. 12)."""
+    from vesicle_core.theory import a_l, gamma_l
+    from vesicle_core.validation import pa_stretch_tension
+
+    th = run_theory(0.116, 553.0, n_out=20, store_modes=False, kT_over_kappa=1e-12)  # no thermal share of u_22
+    gap = 2 * float(gamma_l(2)) / float(a_l(2))
+    assert abs(pa_stretch_tension(553.0) - (-float(th.sigma.values[0]) - gap)) < 1e-9 * 1300
+
+
+def test_box_tension_finding_follows_the_numbers():
+    from vesicle_core.validation import _render_box_tension
+
+    b = {"L_small": 5.0, "L_large": 7.0, "tension_small": 1544.0, "tension_large": 1416.0,
+         "tension_unbounded": 1344.0, "tension_pa": 1261.0}
+    text = " ".join(_render_box_tension(b))
+    assert "-8.3%" in text and "larger box is closer" in text
+    b.update(tension_large=1600.0)
+    assert "is not closer" in " ".join(_render_box_tension(b))

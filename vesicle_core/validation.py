@@ -93,6 +93,24 @@ def _induced_velocity(ds, i):
     return U - background_velocity(X, rate)
 
 
+def box_tension(traj) -> float:
+    """The mean membrane tension at the flow reversal (the last stretch frame, time 0) [kappa/R^2]."""
+    t = traj["time"].values
+    return float(traj["tension"].values[int(np.argmin(np.abs(t)))])
+
+
+def image_extrapolation(L_small, y_small, L_large, y_large) -> float:
+    """y at L -> infinity from two boxes with y(L) = y_inf + c / L^3.
+
+    The periodic images of a force-free vesicle interact through its stresslet, whose image sum scales with the
+    volume fraction ~ 1/L^3 (the same law as the l = 2 relaxation rate's box correction in docs/solver.md).
+    """
+    a, b = L_small**-3, L_large**-3
+    if not abs(a - b) > 0:
+        return math.nan  # one box size: nothing to extrapolate from
+    return float((y_large * a - y_small * b) / (a - b))
+
+
 def box_comparison(traj_small, traj_large) -> dict:
     """Table I: maximum relative difference of the membrane shape and velocity between two box sizes.
 
@@ -131,8 +149,11 @@ def box_comparison(traj_small, traj_large) -> dict:
             continue
         vel_err.append(np.linalg.norm(ua - ub, axis=1).max() / max(np.linalg.norm(ua, axis=1).max(), 1e-300))
         times.append(float(t))
-    return {"L_small": float(traj_small.attrs.get("L", math.nan)),
-            "L_large": float(traj_large.attrs.get("L", math.nan)),
+    s_small, s_large = box_tension(traj_small), box_tension(traj_large)
+    L_s, L_l = float(traj_small.attrs.get("L", math.nan)), float(traj_large.attrs.get("L", math.nan))
+    return {"L_small": L_s, "L_large": L_l,
+            "tension_small": s_small, "tension_large": s_large,
+            "tension_unbounded": image_extrapolation(L_s, s_small, L_l, s_large),
             "N_small": int(traj_small.attrs.get("N", -1)), "N_large": int(traj_large.attrs.get("N", -1)),
             "max_shape_error": float(np.max(shape_err)), "max_velocity_error": float(np.max(vel_err)),
             "median_velocity_error": float(np.median(vel_err)), "frames": int(len(common)),
@@ -169,7 +190,16 @@ def _run_row(case, traj, spec, theo):
         "wall_s": float(traj.attrs.get("wall_time_s_last_call", math.nan)),
         "scheme": str(traj.attrs.get("scheme", "?")),
         "defect_ratio": float(spec.get("defect_amplitude_ratio", math.nan)),
+        "sim_tension_reversal": box_tension(traj) if "tension" in traj else math.nan,
+        "pa_stretch_tension": pa_stretch_tension(S),
     }
+
+
+def pa_stretch_tension(S) -> float:
+    """The PA's tension of the stationary stretched state, (S - Gamma_2) / A_2 (eq. 12 with u_{2,+-2} = 1)."""
+    from .theory import a_l, gamma_l
+
+    return float((S - gamma_l(2)) / a_l(2))
 
 
 def collect(manifest) -> dict:
@@ -188,6 +218,8 @@ def collect(manifest) -> dict:
     if manifest.get("box"):
         with xr.open_dataset(manifest["box"]["small"]) as a, xr.open_dataset(manifest["box"]["large"]) as b:
             box = box_comparison(a.load(), b.load())
+        small = [r for r in rows if r["group"] == "box" and abs(r["L"] - box["L_small"]) < 1e-9]
+        box["tension_pa"] = small[0]["pa_stretch_tension"] if small else math.nan
     data = {"rows": rows, "fits": fits, "box": box, "relaxation": None, "cutoff": None}
     ladder = _ladder_rows(rows)
     if ladder and manifest.get("relaxation", True):
@@ -413,9 +445,14 @@ def _render_ladder(summary, data, manifest):
           "uncertainty. Agreement means within 10% of the paper's IBM value (the interval reaching that band).", ""]
     for S, s in summary.items():
         md += [f"### S = {S:g}", ""]
-        md.append(_table(["N", "h [R]", "vertices", "l_*", "l_peak", "t_*", "steps", "wall (min)"],
+        md.append(_table(["N", "h [R]", "vertices", "l_*", "l_peak", "t_*", "sigma at the reversal", "steps",
+                          "wall (min)"],
                          [[r["N"], r["h"], r["vertices"], r["sim_l_star"], r["sim_l_peak"], r["sim_t_star"],
-                           r["steps"], r["wall_s"] / 60] for r in s["rungs"]]))
+                           r.get("sim_tension_reversal", math.nan), r["steps"], r["wall_s"] / 60]
+                          for r in s["rungs"]]))
+        md += ["", f"sigma at the reversal: the mean tension of the stretched state [kappa/R^2]; the PA's "
+                   f"(S - Gamma_2) / A_2 is {_fmt(s['rungs'][-1].get('pa_stretch_tension', math.nan))} in an "
+                   "unbounded fluid (the box's effect on it: section Periodic box)."]
         e2, e1 = s["h2"], s["h1"]
         def rel(x, paper=s["paper_ibm"]):
             return f"{x / paper - 1:+.1%}" if paper and math.isfinite(x) else "-"
@@ -595,7 +632,29 @@ def _render_box(b):
             f"{b['final_shape_error']:.2e} in the last frame; paper up to 1.3e-3: the maximum is "
             f"{'within' if b['max_shape_error'] <= 1.34e-3 else 'above'} that range), the induced velocity by "
             f"{b['median_velocity_error']:.2e} (median) and {b['max_velocity_error']:.2e} (max) against the paper's "
-            f"1.6e-2.", ""]
+            f"1.6e-2.", ""] + _render_box_tension(b)
+
+
+def _render_box_tension(b):
+    s, g, inf, pa = b["tension_small"], b["tension_large"], b["tension_unbounded"], b.get("tension_pa", math.nan)
+    if not (math.isfinite(s) and math.isfinite(g)):
+        return []
+    md = ["Mean tension of the stationary stretched state (at the reversal) in the two boxes, extrapolated to an "
+          "unbounded fluid with sigma(L) = sigma_inf + c / L^3 (periodic images of the vesicle's stresslet; "
+          "validation.image_extrapolation), against the PA's (S - Gamma_2) / A_2:", "",
+          _table([f"L = {_fmt(b['L_small'])} R", f"L = {_fmt(b['L_large'])} R", "L -> infinity", "PA (unbounded)"],
+                 [[s, g, inf, pa]]), ""]
+    closer = abs(g - pa) < abs(s - pa) if math.isfinite(pa) else None
+    text = (f"Finding: the tension differs by {g / s - 1:+.1%} between the boxes, so the box changes the membrane "
+            f"tension far more than the shape at the reversal; the L = {_fmt(b['L_small'])} R value is "
+            f"{s / pa - 1:+.1%} from the PA's, the L = {_fmt(b['L_large'])} R value {g / pa - 1:+.1%} and the "
+            f"extrapolated one {inf / pa - 1:+.1%}") if math.isfinite(pa) else \
+        f"Finding: the tension differs by {g / s - 1:+.1%} between the boxes"
+    if closer is not None:
+        text += (" (the larger box is closer to the unbounded PA, as periodic images predict)." if closer else
+                 " (the larger box is not closer to the unbounded PA, which periodic images alone do not explain).")
+    md += [text, ""]
+    return md
 
 
 def _render_cutoff(c, f):
