@@ -130,3 +130,13 @@ def test_box_tension_finding_follows_the_numbers():
     assert "-8.3%" in text and "larger box is closer" in text
     b.update(tension_large=1600.0)
     assert "is not closer" in " ".join(_render_box_tension(b))
+
+
+def test_cost_finding_follows_the_numbers():
+    from vesicle_core.validation import _render_cost
+
+    rows = [_row(553, 64, 6.0, wall_s=20.0), _row(553, 256, 15.0, wall_s=3000.0), _row(2224, 256, 25.0, wall_s=3000.0)]
+    text = " ".join(_render_cost(rows))
+    assert "1.67 h" in text and "about 0.8 h" in text and "within a 3 h" in text and "N = 256 costs" in text
+    rows += [_row(227, 256, 12.0, wall_s=9000.0), _row(4448, 256, 35.0, wall_s=9000.0)]
+    assert "above a 3 h" in " ".join(_render_cost(rows))
