@@ -141,6 +141,22 @@ def test_inextensible_resume_is_identical(tmp_path):
     assert res.attrs["steps"] == ref.attrs["steps"]
     np.testing.assert_array_equal(res.node_x.values, ref.node_x.values)
     np.testing.assert_array_equal(res.face_tension.values, ref.face_tension.values)
+    np.testing.assert_array_equal(res.dt_tau.values, ref.dt_tau.values)  # every frame's own step, resumed or not
+
+
+def test_thermal_seed_survives_a_resume_after_the_reversal(tmp_path):
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    cfg = _run_cfg(checkpoint_every=3, seed_spectrum="thermal")
+    ref = xr.open_dataset(run(m, cfg, tmp_path / "a", progress=False)).load()
+    assert ref.attrs["seed_l_max"] >= 3
+    t_rev = ref.attrs["t_reverse_tau"]
+    steps_to_reversal = int(np.searchsorted(np.cumsum(ref.dt_tau.values), t_rev))
+    # stop after the reversal, so the resumed call never sees the seed being put on
+    stop = max(steps_to_reversal, 1) + int(ref.attrs["steps"] - steps_to_reversal) // 2
+    assert run(m, cfg, tmp_path / "b", progress=False, stop_after_steps=stop) is None
+    res = xr.open_dataset(run(m, cfg, tmp_path / "b", progress=False)).load()
+    assert res.attrs["seed_l_max"] == ref.attrs["seed_l_max"]
+    np.testing.assert_array_equal(res.node_x.values, ref.node_x.values)
 
 
 def test_failed_tension_solve_stops_the_run(tmp_path):

@@ -198,7 +198,7 @@ def _thermal_seed(state: State, mesh, cfg: RunConfig, solver: IBMSolver, seed_in
     X_new, l_seed = thermal_seed(solver.be.asnumpy(state.X), mesh.faces, delta=float(mesh.excess_area()), S=S,
                                  seed=cfg.seed, scale=cfg.seed_scale)
     state.X = solver.xp.asarray(X_new, dtype=solver.xp.float64)
-    seed_info["seed_l_max"] = l_seed
+    state.seed_l_max = seed_info["seed_l_max"] = int(l_seed)  # the state keeps it across a resume
     log.info("thermal wrinkle seed (x%g k_B T, seed %d) on 3 <= l <= %d at the reversal", cfg.seed_scale, cfg.seed,
              l_seed)
 
@@ -309,6 +309,8 @@ class _Run:
         self.t_stretch_end = cfg.stretch * T
         self.t_out = cfg.output_every * T
         self.dt_step = 0.0 if self.adaptive else dt  # the step that led to the frame (none before the first)
+        if state.seed_l_max >= 0:
+            self.seed_info["seed_l_max"] = state.seed_l_max
 
     def _progress_bar(self, enabled: bool) -> _Progress:
         cfg, state = self.cfg, self.state
