@@ -5,23 +5,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from vesicle_core.io import safe_load_unique
+
 ROOT = Path(__file__).resolve().parents[1]
 FILES = sorted(p for d in ("config", "workflow") for p in (ROOT / d).rglob("*.y*ml"))
-
-
-class _UniqueKeys(yaml.SafeLoader):
-    pass
-
-
-def _mapping(loader, node, deep=False):
-    keys = [loader.construct_object(k, deep=deep) for k, _ in node.value]
-    dup = sorted({str(k) for k in keys if keys.count(k) > 1})
-    if dup:
-        raise yaml.constructor.ConstructorError(None, None, f"duplicate keys {dup}", node.start_mark)
-    return yaml.SafeLoader.construct_mapping(loader, node, deep)
-
-
-_UniqueKeys.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
 
 
 def test_there_are_yaml_files():
@@ -31,4 +18,20 @@ def test_there_are_yaml_files():
 @pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_no_duplicate_keys(path):
     with open(path) as fh:
-        yaml.load(fh, Loader=_UniqueKeys)
+        safe_load_unique(fh)
+
+
+def test_duplicate_key_is_an_error_naming_the_key(tmp_path):
+    with pytest.raises(yaml.YAMLError, match="duplicate keys \\['N'\\]"):
+        safe_load_unique("N: 64\nL: 5.0\nN: 128\n")
+    assert safe_load_unique("a: {b: 1}\nc: [1, 2]\n") == {"a": {"b": 1}, "c": [1, 2]}
+
+
+def test_run_parameter_file_with_a_repeated_key_is_refused(tmp_path):
+    from vesicle_core.errors import ConfigError
+    from vesicle_core.run_config import load_config
+
+    p = tmp_path / "run.yaml"
+    p.write_text("N: 64\nchi: 10.0\nN: 128\n")
+    with pytest.raises(ConfigError, match="duplicate keys"):
+        load_config(p)

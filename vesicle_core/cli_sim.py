@@ -76,9 +76,8 @@ def add_run(sub):
 def _cmd_run(a):
     import logging
 
-    import yaml
-
     from . import mesh as M
+    from .io import safe_load_unique
     from .run_config import RunConfig
     from .simulate import run
 
@@ -89,15 +88,19 @@ def _cmd_run(a):
 
         load_config(a.config)  # validates, naming the file in any error
         with open(a.config) as fh:
-            params = {k: v for k, v in (yaml.safe_load(fh) or {}).items()}
+            params = {k: v for k, v in (safe_load_unique(fh) or {}).items()}
     if a.si:
+        import yaml
+
         from .units import Params
 
         with open(a.si) as fh:
             try:
-                p = Params(**(yaml.safe_load(fh) or {}))
+                p = Params(**(safe_load_unique(fh) or {}))
             except TypeError as exc:
                 raise ConfigError(f"{a.si}: {exc}") from None
+            except yaml.YAMLError as exc:  # a malformed file or a repeated key
+                raise ConfigError(f"{a.si} is not valid YAML: {exc}") from None
         params.update(chi=p.chi, Re=p.Re, L=p.L_bar)
     try:
         params.update(parse_set(a.set))

@@ -36,3 +36,22 @@ def atomic_write_text(text: str, path) -> None:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def safe_load_unique(stream):
+    """yaml.safe_load that rejects a mapping with a repeated key (PyYAML silently keeps the last one, so a
+    parameter given twice would change a run without a word). Raises yaml.YAMLError naming the keys."""
+    import yaml
+
+    class _UniqueKeys(yaml.SafeLoader):
+        pass
+
+    def mapping(loader, node, deep=False):
+        keys = [loader.construct_object(k, deep=deep) for k, _ in node.value]
+        dup = sorted({str(k) for k in keys if keys.count(k) > 1})
+        if dup:
+            raise yaml.constructor.ConstructorError(None, None, f"duplicate keys {dup}", node.start_mark)
+        return yaml.SafeLoader.construct_mapping(loader, node, deep)
+
+    _UniqueKeys.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    return yaml.load(stream, Loader=_UniqueKeys)

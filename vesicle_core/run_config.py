@@ -105,9 +105,11 @@ def default_lambda(chi: float, scheme: str = "explicit") -> float:
 def load_config(path) -> RunConfig:
     import yaml
 
+    from .io import safe_load_unique
+
     try:
         with open(path) as fh:
-            d = yaml.safe_load(fh) or {}
+            d = safe_load_unique(fh) or {}
     except FileNotFoundError:
         raise ConfigError(f"parameter file {path} does not exist") from None
     except yaml.YAMLError as exc:
