@@ -140,3 +140,21 @@ def test_cost_finding_follows_the_numbers():
     assert "1.67 h" in text and "about 0.8 h" in text and "within a 3 h" in text and "N = 256 costs" in text
     rows += [_row(227, 256, 12.0, wall_s=9000.0), _row(4448, 256, 35.0, wall_s=9000.0)]
     assert "above a 3 h" in " ".join(_render_cost(rows))
+
+
+def test_grid_pa_findings_follow_the_numbers():
+    from vesicle_core.validation import _damped_decay_finding, _damped_pa_finding
+
+    s = {"rungs": [_row(2224, 128, 16.0), _row(2224, 256, 25.0)], "pa": 22.6}
+    dpa = {(2224, 128): {"l_star": 14.4}, (2224, 256): {"l_star": 19.9}}
+    text = " ".join(_damped_pa_finding(2224, s, dpa))
+    assert "1.11 (N = 128), 1.26 (N = 256)" in text and "both rise" in text
+    dpa[(2224, 256)]["l_star"] = 14.0
+    assert "do not both rise" in " ".join(_damped_pa_finding(2224, s, dpa))
+    # rows: S, N, a, low, high, grid PA a, PA a, paper
+    rows = [[2224, 128, 2.67, 2.5, 2.8, 2.51, 0.92, 0.81], [2224, 256, 1.47, 1.3, 1.6, 1.25, 0.92, 0.81]]
+    text = " ".join(_damped_decay_finding(rows))
+    assert "+0.16 (N = 128), +0.22 (N = 256)" in text and "inside the IBM interval at 1 of 2" in text
+    assert "both fall" in text
+    rows[1][5] = 2.9
+    assert "do not fall together" in " ".join(_damped_decay_finding(rows))

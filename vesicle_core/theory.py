@@ -348,12 +348,14 @@ class PASolution:
     l_star: float = float("nan")
     l_peak: float = float("nan")
     sigma_star: float = float("nan")
+    mode_factor: np.ndarray = field(default=None, repr=False)  # r_l of grid_damping (None: the continuum)
 
     def __post_init__(self):
         L = self.l_max
         l = np.arange(L + 1)
-        self._G = gamma_l(l)
-        self._A = a_l(l)
+        r = 1.0 if self.mode_factor is None else np.asarray(self.mode_factor, dtype=float)[: L + 1]
+        self._G = gamma_l(l) * r
+        self._A = a_l(l) * r
         free = np.abs(self.u0) ** 2
         free[2, L + 2] = free[2, L - 2] = 0.0
         free[:2] = 0.0
@@ -429,11 +431,32 @@ class PASolution:
         return a
 
 
+def grid_damping(l, grid_h, kernel=None):
+    """r_l: the rate factor of mode l on an IBM grid of spacing ``grid_h`` (in R) with ``kernel``.
+
+    The IBM moves the membrane with the fluid velocity interpolated from forces spread by the kernel, so every
+    membrane-driven rate of a mode l -- bending relaxation Gamma_l and tension A_l sigma alike -- is slowed by the
+    same factor, measured from single-mode relaxation on the grid (kernels.mode_damping, exp(-(l h / a)^2)).
+    The background flow is imposed at the vertices and is not filtered. ``grid_h`` None: the continuum (1).
+    """
+    from .kernels import DEFAULT_KERNEL, mode_damping
+
+    l = np.asarray(l, dtype=float)
+    if grid_h is None:
+        return np.ones_like(l)
+    check_range("grid_h", grid_h, 0.0, None, lo_open=True)
+    return mode_damping(l, float(grid_h), kernel or DEFAULT_KERNEL)
+
+
 def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, amplitudes="fixed",
-          thermal="literal", normalisation="area", rtol=1e-12, atol=1e-14, threshold=NONTRIVIAL_THRESHOLD):
+          thermal="literal", normalisation="area", rtol=1e-12, atol=1e-14, threshold=NONTRIVIAL_THRESHOLD,
+          grid_h=None, kernel=None):
     """Integrate eqs. (11)-(12) after the reversal and locate t_*, l_max, l_* (see module docstring).
 
     delta: excess area; S: flow strength (> 0); t_end: end in gamma_dot (t - t0) (default :func:`default_t_end`).
+    grid_h, kernel: the PA as an IBM grid carries it, Gamma_l and A_l multiplied by r_l = :func:`grid_damping`
+    (the tension of eq. (12) then follows from the damped rates, so the area is still conserved): a model of what
+    the resolution does to the simulation, with no parameter fitted to wrinkling runs.
     Returns a :class:`PASolution`; :func:`run_theory` turns it into a Dataset.
     """
     from scipy.integrate import solve_ivp
@@ -451,9 +474,10 @@ def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, ampli
     kt = _kT(kT_over_kappa)
     u0 = initial_state(L, S, delta=delta, seed=seed, kT_over_kappa=kt, amplitudes=amplitudes, thermal=thermal,
                        normalisation=normalisation)
+    factor = None if grid_h is None else grid_damping(np.arange(L + 1), grid_h, kernel)
     sol = PASolution(delta=delta, S=S, chi=chi, l_max=L, seed=int(seed), kT_over_kappa=kt,
                      normalisation=normalisation, amplitudes=amplitudes, thermal=thermal, s_end=s_end, u0=u0,
-                     ode=None, nfev=0)
+                     ode=None, nfev=0, mode_factor=factor)
     v0 = float(np.real(u0[2, L + 2]))
     res = solve_ivp(sol.rhs, (0.0, s_end), [0.0, v0], method="DOP853", rtol=rtol, atol=atol, dense_output=True)
     if not res.success:
@@ -485,7 +509,8 @@ def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, ampli
 
 
 def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kappa=None, *, amplitudes="fixed",
-               thermal="literal", normalisation="area", store_modes=True, rtol=1e-12, atol=1e-14):
+               thermal="literal", normalisation="area", store_modes=True, rtol=1e-12, atol=1e-14, grid_h=None,
+               kernel=None):
     """PA of Sec. III after the reversal as an xarray Dataset (layout of the simulation spectra).
 
     coords   time (gamma_dot (t - t0), n_out points in [0, t_end]), t_tau (time, in tau), l (0..l_max),
@@ -502,7 +527,8 @@ def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kapp
 
     check_range("n_out", n_out, 2, None, integer=True)
     sol = solve(delta, S, l_max=l_max, seed=seed, t_end=t_end, kT_over_kappa=kT_over_kappa,
-                amplitudes=amplitudes, thermal=thermal, normalisation=normalisation, rtol=rtol, atol=atol)
+                amplitudes=amplitudes, thermal=thermal, normalisation=normalisation, rtol=rtol, atol=atol,
+                grid_h=grid_h, kernel=kernel)
     L = sol.l_max
     s = np.linspace(0.0, sol.s_end, int(n_out))
     time = s * sol.chi
@@ -564,6 +590,11 @@ def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kapp
         "l_star_rule": "eq. (31) at t_* = argmin Delta_2 over 3 <= l <= l_max_nontrivial with sum_m |u_lm|^2",
         "source": "vesicle_core.theory.run_theory",
     }
+    if grid_h is not None:
+        from .kernels import DEFAULT_KERNEL
+
+        attrs.update(grid_h=float(grid_h), kernel=kernel or DEFAULT_KERNEL,
+                     grid_damping="Gamma_l and A_l times kernels.mode_damping(l, grid_h, kernel)")
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
