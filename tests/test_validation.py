@@ -146,10 +146,10 @@ def test_grid_pa_findings_follow_the_numbers():
     from vesicle_core.validation import _damped_decay_finding, _damped_pa_finding
 
     s = {"rungs": [_row(2224, 128, 16.0), _row(2224, 256, 25.0)], "pa": 22.6}
-    dpa = {(2224, 128): {"l_star": 14.4}, (2224, 256): {"l_star": 19.9}}
+    dpa = {(2224, 128, "peskin4"): {"l_star": 14.4}, (2224, 256, "peskin4"): {"l_star": 19.9}}
     text = " ".join(_damped_pa_finding(2224, s, dpa))
     assert "1.11 (N = 128), 1.26 (N = 256)" in text and "both rise" in text
-    dpa[(2224, 256)]["l_star"] = 14.0
+    dpa[(2224, 256, "peskin4")]["l_star"] = 14.0
     assert "do not both rise" in " ".join(_damped_pa_finding(2224, s, dpa))
     # rows: S, N, a, low, high, grid PA a, PA a, paper
     rows = [[2224, 128, 2.67, 2.5, 2.8, 2.51, 0.92, 0.81], [2224, 256, 1.47, 1.3, 1.6, 1.25, 0.92, 0.81]]
@@ -158,3 +158,14 @@ def test_grid_pa_findings_follow_the_numbers():
     assert "both fall" in text
     rows[1][5] = 2.9
     assert "do not fall together" in " ".join(_damped_decay_finding(rows))
+
+
+def test_seed_closure_with_the_grid_pa_follows_the_numbers():
+    from vesicle_core.validation import _render_seeds
+
+    rows = [_row(553, 128, 13.9, group="ladder"),
+            _row(553, 128, 11.4, group="seed", tag="seed-thermal", seed_spectrum="thermal", seed_scale=1.0)]
+    dpa = {(553, 128, "peskin4"): {"l_star": 10.5, "t_star": 0.24}}
+    text = " ".join(_render_seeds(rows, dpa))
+    # 11.4 / 10.5 - 1, 11.4 / 12.4 - 1 (the row's continuum PA), 13.9 / 10.5 - 1
+    assert "+8.6% (S = 553, N = 128)" in text and "continuum PA by -8.1%" in text and "by +32.4%" in text
