@@ -351,3 +351,17 @@ def test_grid_damping_lowers_lstar_towards_the_continuum_with_refinement():
     ls = [solve(0.116, 2224.0, grid_h=h).l_star for h in (5.0 / 128, 5.0 / 256, 1e-6)]
     assert ls[0] < ls[1] < ls[2]
     assert abs(ls[2] / solve(0.116, 2224.0).l_star - 1) < 1e-6
+
+
+def test_theory_cli_grid_h_writes_the_damped_pa(tmp_path):
+    import xarray as xr
+
+    from vesicle_core.cli import main
+    from vesicle_core.theory import solve
+
+    out = tmp_path / "t.nc"
+    assert main(["theory", "--delta", "0.116", "--S", "553", "--grid-h", "0.0390625", "--no-modes", "-o",
+                 str(out)]) == 0
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["grid_h"] == 0.0390625 and ds.attrs["kernel"] == "peskin4"
+        assert abs(float(ds.l_star) - solve(0.116, 553.0, grid_h=0.0390625).l_star) < 1e-9

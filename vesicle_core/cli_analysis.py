@@ -11,6 +11,7 @@ import sys
 
 from .cli_args import int_in, positive_float
 from .errors import check_range
+from .kernels import DEFAULT_KERNEL, KERNELS
 
 
 # --------------------------------------------------------------------------- decompose
@@ -64,6 +65,10 @@ def add_theory(sub):
     p.add_argument("--seed", type=int_in("--seed", 0, 2**31 - 1), default=0, help="seed of the thermal phases")
     p.add_argument("--n-out", type=int_in("--n-out", 10, 100000), default=401, help="output times")
     p.add_argument("--no-modes", action="store_true", help="do not store u_lm(t) (smaller file)")
+    p.add_argument("--grid-h", type=positive_float("--grid-h"), default=None,
+                   help="the PA as an IBM grid of this spacing (in R) carries it: every mode's rates times the "
+                        "kernel's measured damping (theory.grid_damping); default: the continuum")
+    p.add_argument("--kernel", choices=sorted(KERNELS), default=DEFAULT_KERNEL, help="kernel of --grid-h")
     p.set_defaults(func=_cmd_theory)
 
 
@@ -71,7 +76,8 @@ def _cmd_theory(a):
     from .datasets import write_dataset
     from .theory import run_theory
 
-    ds = run_theory(a.delta, a.S, l_max=a.l_max, seed=a.seed, n_out=a.n_out, store_modes=not a.no_modes)
+    ds = run_theory(a.delta, a.S, l_max=a.l_max, seed=a.seed, n_out=a.n_out, store_modes=not a.no_modes,
+                    grid_h=a.grid_h, kernel=a.kernel if a.grid_h else None)
     _set_cf(ds, "perturbation analysis of a quasi-spherical vesicle after a flow reversal")
     write_dataset(ds, a.output)
     print(f"wrote {a.output}: t_* = {float(ds.t_star):.4g}, l_* (eq. 31) = {float(ds.l_star):.4g}, "
