@@ -54,6 +54,9 @@ def main(argv=None):
     except VesicleError as exc:
         print(f"vesicle {args.command}: error: {exc}", file=sys.stderr)
         return 3 if isinstance(exc, NumericalInstability) else 2
+    except KeyboardInterrupt:  # SIGINT or SIGTERM; a run has checkpointed and says how to resume
+        print(f"vesicle {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

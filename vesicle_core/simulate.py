@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import logging
 import math
+import signal
 import sys
 import time as _time
 from pathlib import Path
@@ -286,6 +287,7 @@ class _Run:
         self.A0, self.V0 = self.mem.ref.area, self.mem.ref.volume
         self.T = T = cfg.time_scale()
         self.seed_info = {}
+        self.stop_signal = 0  # set by a SIGINT/SIGTERM handler (run()): stop after the current step
         self.state, self.resumed = _start(mesh, cfg, solver, outdir, self.seed_shape)
         state = self.state
         self.dt = dt = state.dt
@@ -353,6 +355,11 @@ class _Run:
                 return True
             t_event = self._step_length(X, geo)
             self._advance(X, F, geo, rate, output_due, t_event)
+            if self.stop_signal:  # SIGINT/SIGTERM during the step: keep it, then stop
+                self.checkpoint()
+                log.warning("stopped by signal %d at step %d (t = %.6g tau); checkpoint written, rerun the same "
+                            "command to resume", self.stop_signal, state.step, state.t)
+                raise KeyboardInterrupt
             if stop_after_steps is not None and self.steps_this_call >= stop_after_steps:
                 return False
 
@@ -464,8 +471,11 @@ class _Run:
         if state.step % 16 == 0 and not bool(self.xp.isfinite(state.X).all()):
             self.fail("NaN or Inf in vertex positions (time step too large?)", X)
         if state.step % cfg.checkpoint_every == 0:
-            u_hat = self.solver.stokes.state["u_hat"] if cfg.rho_bar > 0 else None
-            save_checkpoint(self.outdir / CHECKPOINT, state, self.be, u_hat)
+            self.checkpoint()
+
+    def checkpoint(self) -> None:
+        u_hat = self.solver.stokes.state["u_hat"] if self.cfg.rho_bar > 0 else None
+        save_checkpoint(self.outdir / CHECKPOINT, self.state, self.be, u_hat)
 
     def finalize(self) -> Path:
         """Move the complete trajectory to trajectory.nc with the run's statistics; drop the checkpoint."""
@@ -481,6 +491,23 @@ class _Run:
         return path
 
 
+def _catch_stop_signals(r: _Run) -> dict:
+    """SIGINT and SIGTERM (Ctrl-C, a scheduler's or Snakemake's stop) end the run after the current step with a
+    checkpoint, so a long run loses at most one step; a second signal stops at once. -> the previous handlers."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():  # signal handlers live in the main thread
+        return {}
+
+    def handler(signum, frame):
+        if r.stop_signal:
+            raise KeyboardInterrupt
+        r.stop_signal = signum
+        log.warning("signal %d: stopping after this step with a checkpoint (send it again to stop at once)", signum)
+
+    return {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
 def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: int | None = None) -> Path:
     """Run (or resume) one case; returns the path of the complete trajectory.
 
@@ -491,6 +518,7 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
     (outdir / FAILURE).unlink(missing_ok=True)
     mesh.check()
     r = _Run(mesh, cfg, outdir, progress)
+    previous = _catch_stop_signals(r)
     try:
         finished = r.loop(stop_after_steps)
     except NumericalInstability as exc:
@@ -499,7 +527,12 @@ def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: i
         raise
     except KeyboardInterrupt:
         r.bar.close()
-        log.warning("interrupted at step %d; rerun the same command to resume from the last checkpoint", r.state.step)
+        if not r.stop_signal:
+            log.warning("interrupted at step %d; rerun the same command to resume from the last checkpoint",
+                        r.state.step)
         raise
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     r.bar.close()
     return r.finalize() if finished else None
