@@ -169,3 +169,17 @@ def test_seed_closure_with_the_grid_pa_follows_the_numbers():
     text = " ".join(_render_seeds(rows, dpa))
     # 11.4 / 10.5 - 1, 11.4 / 12.4 - 1 (the row's continuum PA), 13.9 / 10.5 - 1
     assert "+8.6% (S = 553, N = 128)" in text and "continuum PA by -8.1%" in text and "by +32.4%" in text
+
+
+def test_exponent_finding_compares_with_the_grid_pa():
+    from vesicle_core.fits import fit_power_law
+    from vesicle_core.validation import _render_exponents
+
+    Ss = (227.0, 553.0, 1106.5, 2224.0, 4448.0)
+    fine = [_row(S, 256, 6.0 * S**0.33, group="fine") for S in Ss]
+    dpa = {(S, 256, "peskin4"): {"l_star": 6.0 * S**0.34} for S in Ss}
+    dpa.update({(S, 512, "peskin4"): {"l_star": 3.0 * S**0.45} for S in Ss})
+    text = " ".join(_render_exponents(fine, {}, None, fit_power_law, dpa))
+    assert "b = 0.330" in text and "outside this interval" in text  # exact power law: a zero-width interval
+    assert "The PA on the same grid gives 0.340, outside" in text and "paper's grid it gives 0.450" in text
+    assert "does not contain the paper's IBM" in text

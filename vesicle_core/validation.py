@@ -38,6 +38,7 @@ PAPER_EXPONENT_IBM = 0.3923
 PAPER_EXPONENT_PA = 0.372
 TURITSYN_EXPONENT = 1.0 / 3.0
 PAPER_DECAY = {553.0: 0.7439, 2224.0: 0.8108}
+PAPER_GRID = (512, 5.0)  # the paper's fluid grid: 512^3 nodes (Sec. V), box 2.5 diameters = 5 R (Table I)
 
 
 def _paper_lstar(delta, S):
@@ -230,6 +231,9 @@ def collect(manifest) -> dict:
     if ladder and manifest.get("damped_pa", True):
         data["damped_pa"] = damped_pa_table([r for r in rows if r["group"] in ("ladder", "fine", "seed",
                                                                                "variation")])
+        N, L = PAPER_GRID
+        paper_grid = [{**r, "N": N, "h": L / N, "kernel": DEFAULT_KERNEL} for r in rows if r["group"] == "fine"]
+        data["damped_pa"].update(damped_pa_table(paper_grid))
     return data
 
 
@@ -527,6 +531,13 @@ def _render_exponents(fine, summary, f, fit_power_law, dpa=None):
             g = fit_power_law(*zip(*grid, strict=True))
             rows.append([f"PA on the finest rung's grid (N = {qs[0]['N']}), same {len(grid)} S", g.exponent,
                          g.ci_low, g.ci_high])
+        N_p = PAPER_GRID[0]
+        grid = [(r["S"], (dpa or {}).get((r["S"], N_p, DEFAULT_KERNEL), {}).get("l_star")) for r in qs]
+        grid = [(S_, y) for S_, y in grid if y is not None and y > 0]
+        if len(grid) >= 3:
+            g = fit_power_law(*zip(*grid, strict=True))
+            rows.append([f"PA on the paper's grid (N = {N_p}, L = {PAPER_GRID[1]:g} R, 4-point kernel), same "
+                         f"{len(grid)} S", g.exponent, g.ci_low, g.ci_high])
     pa = _pa_exponent(f, 0.116) if f is not None else (math.nan,) * 3
     if math.isfinite(pa[0]):
         rows.append(["this PA (all PA S at Delta 0.116)", *pa])
@@ -544,9 +555,19 @@ def _render_exponents(fine, summary, f, fit_power_law, dpa=None):
     md += ["", f"Paper: IBM {PAPER_EXPONENT_IBM}, PA {PAPER_EXPONENT_PA}; Turitsyn et al.: 1/3.", ""]
     if b is not None:
         inside = b.ci_low <= PAPER_EXPONENT_IBM <= b.ci_high
-        md.append(f"Finding: at the finest rung b = {b.exponent:.3f} [{b.ci_low:.3f}, {b.ci_high:.3f}]; the paper's "
-                  f"IBM {PAPER_EXPONENT_IBM} is {'inside' if inside else 'outside'} this interval.")
-        md.append("")
+        text = (f"Finding: at the finest rung b = {b.exponent:.3f} [{b.ci_low:.3f}, {b.ci_high:.3f}]; the paper's "
+                f"IBM {PAPER_EXPONENT_IBM} is {'inside' if inside else 'outside'} this interval")
+        grid_rows = {r[0].split(" (")[0]: r for r in rows if str(r[0]).startswith("PA on the")}
+        own, paper = grid_rows.get("PA on the finest rung's grid"), grid_rows.get("PA on the paper's grid")
+        if own:
+            text += (f". The PA on the same grid gives {own[1]:.3f}, "
+                     + ("inside" if b.ci_low <= own[1] <= b.ci_high else "outside")
+                     + " the IBM's interval")
+        if paper:
+            text += (f"; on the paper's grid it gives {paper[1]:.3f} [{paper[2]:.3f}, {paper[3]:.3f}], which "
+                     + ("contains" if paper[2] <= PAPER_EXPONENT_IBM <= paper[3] else "does not contain")
+                     + f" the paper's IBM {PAPER_EXPONENT_IBM}")
+        md += [text + ".", ""]
     return md
 
 
