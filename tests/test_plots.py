@@ -214,3 +214,23 @@ def test_vertex_average_keeps_smooth_fields_and_removes_alternation():
     rng = np.random.default_rng(0)
     noise = rng.choice([-1.0, 1.0], size=len(f))
     assert np.sqrt(np.mean(vertex_average(v, f, noise) ** 2)) < 0.5
+
+
+def test_plot_lstar_draws_each_delta_at_its_finest_grid(tmp_path, monkeypatch):
+    from vesicle_core.fits import sweep_fit_dataset
+
+    dss = []
+    for N, b in ((128, 0.20), (256, 0.36)):  # a coarse rung with a different exponent
+        for i, S in enumerate((227.0, 553.0, 2224.0)):
+            ds = spectra_like(S=S, kind="spectra", seed=i, maps=False)
+            ds["l_star"] = ((), 4.0 * S**b)
+            ds.attrs.update(case_id=f"N{N}_{i}", N=N, mesh_n_vertices=2562)
+            dss.append(ds)
+    figs = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, outputs, dpi=150: figs.append(fig))
+    plots.plot_lstar(sweep_fit_dataset(dss), tmp_path / "l.png", guide=False)
+    labels = figs[0].axes[0].get_legend_handles_labels()[1]
+    assert any("N = 256" in x for x in labels) and not any("N = 128" in x for x in labels)
+    assert any("0.360" in x for x in labels) and not any("0.200" in x for x in labels)
+    points = [ln for ln in figs[0].axes[0].lines if ln.get_linestyle() == "None"]
+    assert sum(len(ln.get_xdata()) for ln in points) == 3

@@ -253,7 +253,8 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
 
     ``fit`` is the dataset of ``vesicle fit`` (vesicle_core.fits.sweep_fit_dataset): per-case points on the
     ``case`` dimension and per-group power laws on ``group``. Groups with fewer than three points have NaN
-    exponents and are drawn without a line.
+    exponents and are drawn without a line. Simulations are drawn at each Delta's finest grid only (a resolution
+    study's coarser rungs, seeds and variations would otherwise pile up at the same S), with that N in the legend.
     """
     plt = _mpl()
     if measure not in ("l_star", "l_peak"):
@@ -267,17 +268,22 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
     S = np.asarray(ds["S"].values, dtype=float)
     y = np.asarray(ds[measure].values, dtype=float)
     keys = sorted({_group_key(d) for d in delta})
+    N = np.asarray(ds["N"].values, dtype=int) if "N" in ds.variables else np.zeros(len(S), dtype=int)
+    finest = {k: N[(kind == "simulation") & np.array([_group_key(d) == k for d in delta])].max(initial=0)
+              for k in keys}
+    shown = (kind != "simulation") | np.array([N[i] == finest[_group_key(d)] for i, d in enumerate(delta)])
     cmap = plt.get_cmap("tab10")
     colour = {k: cmap(i % 10) for i, k in enumerate(keys)}
     fig, ax = plt.subplots(figsize=(6.0, 4.6), constrained_layout=True)
-    ok = np.isfinite(S) & np.isfinite(y) & (S > 0) & (y > 0)
+    ok = np.isfinite(S) & np.isfinite(y) & (S > 0) & (y > 0) & shown
     for k in keys:
         for knd, marker, face, name in (("simulation", "o", None, "IBM"), ("theory", "s", "none", "PA")):
             sel = ok & (kind == knd) & np.array([_group_key(d) == k for d in delta])
             if not sel.any():
                 continue
+            grid = f", N = {finest[k]}" if knd == "simulation" and finest[k] > 0 else ""
             ax.plot(S[sel], y[sel], marker=marker, ls="none", ms=7, color=colour[k],
-                    mfc=colour[k] if face is None else "none", label=f"{name}, $\\Delta$ = {k:g}")
+                    mfc=colour[k] if face is None else "none", label=f"{name}, $\\Delta$ = {k:g}{grid}")
     if "group" in ds.dims:
         gk = np.asarray(ds["group_kind"].values).astype(str)
         gd = np.asarray(ds["group_delta"].values, dtype=float)
@@ -289,6 +295,8 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
             hi = float(ds[f"{measure}_ci_high"].values[i])
             c = float(ds[f"{measure}_prefactor"].values[i])
             k = _group_key(gd[i])
+            if gk[i] == "simulation" and "group_N" in ds.variables and int(ds["group_N"].values[i]) != finest[k]:
+                continue
             sel = ok & (kind == gk[i]) & np.array([_group_key(d) == k for d in delta])
             if sel.sum() < 2:
                 continue
