@@ -229,9 +229,7 @@ def validation_group(cid):
     if v.get("ladder_tag") and tag == v["ladder_tag"]:
         # each Delta's finest rung is its main sweep (the elongated cases may stop at a coarser N)
         finest = max(
-            CASES[c]["run"]["N"]
-            for c in CASES
-            if _case_tag(c) == tag and CASES[c]["delta"] == CASES[cid]["delta"]
+            CASES[c]["run"]["N"] for c in CASES if _case_tag(c) == tag and CASES[c]["delta"] == CASES[cid]["delta"]
         )
         return "fine" if CASES[cid]["run"]["N"] == finest else "ladder"
     if tag in v.get("seed_tags", []):
