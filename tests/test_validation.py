@@ -183,3 +183,15 @@ def test_exponent_finding_compares_with_the_grid_pa():
     assert "b = 0.330" in text and "outside this interval" in text  # exact power law: a zero-width interval
     assert "The PA on the same grid gives 0.340, outside" in text and "paper's grid it gives 0.450" in text
     assert "does not contain the paper's IBM" in text
+
+
+def test_cost_names_resumed_runs_whose_earlier_calls_were_not_timed():
+    from vesicle_core.validation import _render_cost, _wall
+
+    assert _wall({"wall_time_s": 90.0, "wall_time_s_last_call": 30.0, "resumed": 1}) == \
+        {"wall_s": 90.0, "wall_partial": False}
+    old = _wall({"wall_time_s_last_call": 30.0, "resumed": 1})
+    assert old == {"wall_s": 30.0, "wall_partial": True}
+    rows = [_row(553, 256, 15.0, **old), _row(2224, 256, 25.0, wall_s=60.0)]
+    assert "D0.116_S553_N256_ladder" in " ".join(_render_cost(rows))
+    assert "Resumed runs" not in " ".join(_render_cost(rows[1:]))

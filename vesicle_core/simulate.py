@@ -475,13 +475,19 @@ class _Run:
 
     def checkpoint(self) -> None:
         u_hat = self.solver.stokes.state["u_hat"] if self.cfg.rho_bar > 0 else None
-        save_checkpoint(self.outdir / CHECKPOINT, self.state, self.be, u_hat)
+        wall0 = self.state.wall_s
+        self.state.wall_s = wall0 + (_time.perf_counter() - self.wall0)  # the run's wall time up to this step
+        try:
+            save_checkpoint(self.outdir / CHECKPOINT, self.state, self.be, u_hat)
+        finally:
+            self.state.wall_s = wall0
 
     def finalize(self) -> Path:
         """Move the complete trajectory to trajectory.nc with the run's statistics; drop the checkpoint."""
         state, cfg = self.state, self.cfg
         wall = _time.perf_counter() - self.wall0
         extra = {**self.integ.stats(), **self.seed_info, "steps": state.step, "wall_time_s_last_call": wall,
+                 "wall_time_s": state.wall_s + wall,  # all calls; NaN if an earlier call did not record it
                  "t_reverse_tau": state.t_reverse, "t_reverse_gamma": state.t_reverse * cfg.chi,
                  "resumed": int(self.resumed)}
         if self.adaptive and state.step > 0:  # the mean step (each frame stores its own in dt_tau)

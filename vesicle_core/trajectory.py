@@ -53,6 +53,7 @@ class State:
     dt_steps: tuple = ()  # lengths of the last two steps (tau), for the extrapolated warm start
     cg_iterations: list = None  # per step (inextensible)
     seed_l_max: int = -1  # highest l of the thermal seed put on at the reversal (-1: none)
+    wall_s: float = 0.0  # wall time of the earlier calls of a resumed run (s)
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -74,7 +75,7 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
         "t": state.t, "step": state.step, "phase": state.phase, "t_reverse": state.t_reverse,
         "n_frames": state.n_frames, "next_output": state.next_output, "dt": state.dt,
         "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
-        "next_output_t": state.next_output_t, "seed_l_max": state.seed_l_max,
+        "next_output_t": state.next_output_t, "seed_l_max": state.seed_l_max, "wall_s": state.wall_s,
     }
     if state.dt_steps:  # netCDF attributes cannot be empty
         attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
@@ -98,6 +99,7 @@ def load_checkpoint(path: Path, xp):
         sigma=xp.asarray(ds["sigma"].values) if "sigma" in ds else None,
         sigma_prev=xp.asarray(ds["sigma_prev"].values) if "sigma_prev" in ds else None,
         next_output_t=float(a.get("next_output_t", 0.0)), seed_l_max=int(a.get("seed_l_max", -1)),
+        wall_s=float(a.get("wall_s", math.nan)),  # unknown for checkpoints written before it was recorded
         dt_steps=tuple(np.atleast_1d(a.get("dt_steps", np.zeros(0))).tolist()),
         cg_iterations=[int(v) for v in ds["cg_iterations"].values] if "cg_iterations" in ds else [],
     )

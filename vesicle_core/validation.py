@@ -189,12 +189,22 @@ def _run_row(case, traj, spec, theo):
         "max_area_drift": float(np.abs(traj["area_drift"].values).max()),
         "max_volume_drift": float(np.abs(traj["volume_drift"].values).max()),
         "dt_gamma": float(traj.attrs.get("dt_gamma", math.nan)), "steps": int(traj.attrs.get("steps", -1)),
-        "wall_s": float(traj.attrs.get("wall_time_s_last_call", math.nan)),
+        **_wall(traj.attrs),
         "scheme": str(traj.attrs.get("scheme", "?")),
         "defect_ratio": float(spec.get("defect_amplitude_ratio", math.nan)),
         "sim_tension_reversal": box_tension(traj) if "tension" in traj else math.nan,
         "pa_stretch_tension": pa_stretch_tension(S),
     }
+
+
+def _wall(attrs) -> dict:
+    """The run's wall time over all its calls; a run resumed from a checkpoint that predates that record counts
+    its last call only (``wall_partial``)."""
+    total = float(attrs.get("wall_time_s", math.nan))
+    if math.isfinite(total):
+        return {"wall_s": total, "wall_partial": False}
+    return {"wall_s": float(attrs.get("wall_time_s_last_call", math.nan)),
+            "wall_partial": bool(int(attrs.get("resumed", 0)))}
 
 
 def pa_stretch_tension(S) -> float:
@@ -787,6 +797,10 @@ def _render_cost(rows, target_h=3.0, jobs=2):
         table.append([N, len(w), sum(w) / 60, float(np.median(w)) / 60, sum(w) / total])
     md = ["Simulation wall time per grid (each run's own clock; the runs shared the cores with other jobs):", "",
           _table(["N", "runs", "total (min)", "median per run (min)", "share of the total"], table), ""]
+    partial = [r["case_id"] for r in rows if r.get("wall_partial")]
+    if partial:
+        md += [f"Resumed runs whose earlier calls were not timed (their last call only is counted, so the totals are "
+               f"low): {', '.join(partial)}.", ""]
     elapsed = total / jobs / 3600
     big = max(table, key=lambda r: r[2])
     md += [f"Finding: the {len(walls)} simulations took {total / 3600:.2f} h of run time in all; with {jobs} jobs "
