@@ -193,5 +193,6 @@ def test_cost_names_resumed_runs_whose_earlier_calls_were_not_timed():
     old = _wall({"wall_time_s_last_call": 30.0, "resumed": 1})
     assert old == {"wall_s": 30.0, "wall_partial": True}
     rows = [_row(553, 256, 15.0, **old), _row(2224, 256, 25.0, wall_s=60.0)]
-    assert "D0.116_S553_N256_ladder" in " ".join(_render_cost(rows))
+    text = " ".join(_render_cost(rows))
+    assert "D0.116_S553_N256_ladder" in text and "at least" in text and "whether it fits is open" in text
     assert "Resumed runs" not in " ".join(_render_cost(rows[1:]))

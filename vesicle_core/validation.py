@@ -803,10 +803,14 @@ def _render_cost(rows, target_h=3.0, jobs=2):
                f"low): {', '.join(partial)}.", ""]
     elapsed = total / jobs / 3600
     big = max(table, key=lambda r: r[2])
-    md += [f"Finding: the {len(walls)} simulations took {total / 3600:.2f} h of run time in all; with {jobs} jobs "
-           f"at a time that is about {elapsed:.1f} h of elapsed time before the analyses, "
-           f"{'within' if elapsed <= target_h else 'above'} a {target_h:g} h sitting; N = {big[0]} costs the most "
-           f"({big[4]:.0%} of the run time).", ""]
+    least = "at least " if partial else ""
+    verdict = ("above" if elapsed > target_h else
+               "so whether it fits is open (untimed calls)" if partial else "within")
+    md += [f"Finding: the {len(walls)} simulations took {least}{total / 3600:.2f} h of run time in all; with {jobs} "
+           f"jobs at a time that is {least}about {elapsed:.1f} h of elapsed time before the analyses, "
+           + (f"{verdict} a {target_h:g} h sitting" if verdict in ("above", "within") else
+              f"{verdict} against a {target_h:g} h sitting")
+           + f"; N = {big[0]} costs the most ({big[4]:.0%} of the run time).", ""]
     return md
 
 
