@@ -531,23 +531,25 @@ def _render_exponents(fine, summary, f, fit_power_law, dpa=None):
     md = ["## Exponent of l_* against S", ""]
     qs = sorted((r for r in fine if r["delta"] < 0.5 and r["sim_l_star"] > 0), key=lambda r: r["S"])
     rows = []
-    b = None
+    b = own = paper = None
+
+    def grid_fit(key):  # the PA on a grid at the same S, if at least 3 of them were computed
+        pts = [(r["S"], (dpa or {}).get(key(r), {}).get("l_star")) for r in qs]
+        pts = [(S_, y) for S_, y in pts if y is not None and y > 0]
+        return (fit_power_law(*zip(*pts, strict=True)), len(pts)) if len(pts) >= 3 else (None, len(pts))
+
     if len(qs) >= 3:
         b = fit_power_law([r["S"] for r in qs], [r["sim_l_star"] for r in qs])
         rows.append([f"IBM, finest rung (N = {qs[0]['N']}), {len(qs)} S", b.exponent, b.ci_low, b.ci_high])
-        grid = [(r["S"], (dpa or {}).get(_dkey(r), {}).get("l_star")) for r in qs]
-        grid = [(S_, y) for S_, y in grid if y is not None and y > 0]
-        if len(grid) >= 3:
-            g = fit_power_law(*zip(*grid, strict=True))
-            rows.append([f"PA on the finest rung's grid (N = {qs[0]['N']}), same {len(grid)} S", g.exponent,
-                         g.ci_low, g.ci_high])
+        own, n = grid_fit(_dkey)
+        if own:
+            rows.append([f"PA on the finest rung's grid (N = {qs[0]['N']}), same {n} S", own.exponent, own.ci_low,
+                         own.ci_high])
         N_p = PAPER_GRID[0]
-        grid = [(r["S"], (dpa or {}).get((r["S"], N_p, DEFAULT_KERNEL), {}).get("l_star")) for r in qs]
-        grid = [(S_, y) for S_, y in grid if y is not None and y > 0]
-        if len(grid) >= 3:
-            g = fit_power_law(*zip(*grid, strict=True))
-            rows.append([f"PA on the paper's grid (N = {N_p}, L = {PAPER_GRID[1]:g} R, 4-point kernel), same "
-                         f"{len(grid)} S", g.exponent, g.ci_low, g.ci_high])
+        paper, n = grid_fit(lambda r: (r["S"], N_p, DEFAULT_KERNEL))
+        if paper:
+            rows.append([f"PA on the paper's grid (N = {N_p}, L = {PAPER_GRID[1]:g} R, 4-point kernel), same {n} S",
+                         paper.exponent, paper.ci_low, paper.ci_high])
     pa = _pa_exponent(f, 0.116) if f is not None else (math.nan,) * 3
     if math.isfinite(pa[0]):
         rows.append(["this PA (all PA S at Delta 0.116)", *pa])
@@ -567,15 +569,14 @@ def _render_exponents(fine, summary, f, fit_power_law, dpa=None):
         inside = b.ci_low <= PAPER_EXPONENT_IBM <= b.ci_high
         text = (f"Finding: at the finest rung b = {b.exponent:.3f} [{b.ci_low:.3f}, {b.ci_high:.3f}]; the paper's "
                 f"IBM {PAPER_EXPONENT_IBM} is {'inside' if inside else 'outside'} this interval")
-        grid_rows = {r[0].split(" (")[0]: r for r in rows if str(r[0]).startswith("PA on the")}
-        own, paper = grid_rows.get("PA on the finest rung's grid"), grid_rows.get("PA on the paper's grid")
         if own:
-            text += (f". The PA on the same grid gives {own[1]:.3f}, "
-                     + ("inside" if b.ci_low <= own[1] <= b.ci_high else "outside")
+            text += (f". The PA on the same grid gives {own.exponent:.3f}, "
+                     + ("inside" if b.ci_low <= own.exponent <= b.ci_high else "outside")
                      + " the IBM's interval")
         if paper:
-            text += (f"; on the paper's grid it gives {paper[1]:.3f} [{paper[2]:.3f}, {paper[3]:.3f}], which "
-                     + ("contains" if paper[2] <= PAPER_EXPONENT_IBM <= paper[3] else "does not contain")
+            text += (f"; on the paper's grid it gives {paper.exponent:.3f} [{paper.ci_low:.3f}, {paper.ci_high:.3f}], "
+                     "which " + ("contains" if paper.ci_low <= PAPER_EXPONENT_IBM <= paper.ci_high else
+                                 "does not contain")
                      + f" the paper's IBM {PAPER_EXPONENT_IBM}")
         md += [text + ".", ""]
     return md
