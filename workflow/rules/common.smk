@@ -159,6 +159,18 @@ def ana_resource(key):
     return lambda wildcards: int(config["resources"]["analysis"][key])
 
 
+# Scheduling. A run's cost grows like N^3 log N per Stokes solve times a step count that also grows with N, so
+# a sweep's largest grids are its longest jobs by far (convergence.yaml: each 256^3 run ~50 min, each 128^3 run
+# 3-12 min). Snakemake picks ready jobs in an arbitrary order among equal priorities; starting the longest first
+# (longest-processing-time scheduling) keeps every core busy to the end instead of leaving one 256^3 run alone.
+# Meshes take seconds and gate the runs, so they go before any run.
+MESH_PRIORITY = 100_000
+
+
+def sim_priority(wildcards):
+    return int(CASES[wildcards.case_id]["run"]["N"])
+
+
 # --------------------------------------------------------------------------- paths
 VEC = config["figures"]["vector_format"]
 

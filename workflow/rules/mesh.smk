@@ -14,6 +14,7 @@ rule mesh:
         lloyd_steps=mesh_value("lloyd_steps"),
         delta=mesh_value("delta"),
         radius=mesh_value("radius"),
+    priority: MESH_PRIORITY
     resources:
         mem_mb=ana_resource("mem_mb"),
         runtime=ana_resource("runtime"),

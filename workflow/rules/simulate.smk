@@ -41,6 +41,7 @@ if SIMULATE_CACHED:
         params:
             **SIMULATE_PARAMS,
         threads: lambda wildcards: int(CASES[wildcards.case_id]["run"]["fft_workers"])
+        priority: sim_priority
         resources:
             gpu=sim_resource("gpu"),
             mem_mb=sim_resource("mem_mb"),
@@ -65,6 +66,7 @@ else:
         params:
             **SIMULATE_PARAMS,
         threads: lambda wildcards: int(CASES[wildcards.case_id]["run"]["fft_workers"])
+        priority: sim_priority
         resources:
             gpu=sim_resource("gpu"),
             mem_mb=sim_resource("mem_mb"),
