@@ -22,10 +22,12 @@ SIMULATE_PARAMS = dict(
 )
 
 # the case's parameters go to `vesicle run` as one file, run.yaml, kept in the run directory: the same command
-# reruns the case by hand (`vesicle run <mesh> -o <dir> -c <dir>/run.yaml`)
+# reruns the case by hand (`vesicle run <mesh> -o <dir> -c <dir>/run.yaml`). Its progress lines (every 5% of the
+# simulated time: step, strain, tension, area drift, CG iterations, ETA) go to the log, so a long run can be
+# watched with `tail -f results/logs/simulate/<case>.log`.
 SIMULATE_SHELL = (
     "printf '%s' {params.case:q} > {params.outdir}/run.yaml"
-    " && vesicle run {input.mesh} -o {params.outdir} --quiet -c {params.outdir}/run.yaml"
+    " && vesicle run {input.mesh} -o {params.outdir} -c {params.outdir}/run.yaml"
     " > {log} 2>&1"
 )
 
