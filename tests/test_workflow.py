@@ -65,6 +65,8 @@ def planned_jobs(text):
                 cur["output"] = [v.strip() for v in val.split(",") if v.strip()]
             elif key == "wildcards":
                 cur["wildcards"] = dict(kv.split("=", 1) for kv in val.split(", ") if "=" in kv)
+            elif key == "priority":
+                cur["priority"] = int(val)
         else:
             cur = None
     return jobs
@@ -222,6 +224,24 @@ def test_validation_config_plans(tmp_path):
     assert len(sims) == 14  # 5 + 2 fine, 5 coarse, 2 box
     assert any(j["rule"] == "validation_report" for j in jobs)
     assert "--box" in r.stdout and "--case" in r.stdout
+
+
+def test_largest_grids_are_scheduled_first(tmp_path):
+    """A sweep's longest jobs (the largest N) start first, and the meshes that gate them before any run: with
+    arbitrary order, convergence.yaml could end with one 256^3 run alone on one of the two cores."""
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "-n", "--configfile", "config/convergence.yaml")
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    sims = [j for j in jobs if j["rule"] == "simulate"]
+    assert len(sims) == 22
+    for j in sims:
+        N = int(re.search(r"_N(\d+)_", j["wildcards"]["case_id"]).group(1))
+        assert j.get("priority", 0) == N, j
+    meshes = [j for j in jobs if j["rule"] == "mesh"]
+    assert meshes and min(j.get("priority", 0) for j in meshes) > max(j["priority"] for j in sims)
+    others = [j for j in jobs if j["rule"] not in ("simulate", "mesh")]
+    assert all(j.get("priority", 0) == 0 for j in others)
 
 
 def test_lint_is_clean(tmp_path):
