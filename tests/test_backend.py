@@ -234,3 +234,83 @@ def test_gpu_named_backend_takes_the_xp_fft_branch():
     assert fake.rfftn(a, (1, 2, 3), out=out) is out
     assert np.abs(out - ref).max() < 1e-12 * np.abs(ref).max()
     np.testing.assert_allclose(fake.irfftn(out, (4, 6, 8), (1, 2, 3)), a, rtol=0, atol=1e-13)
+
+
+# --------------------------------------------------------------------------- FFTW wisdom on disk
+needs_pyfftw = pytest.mark.skipif(bk._import_pyfftw() is None, reason="pyFFTW not installed")
+
+
+def _measured_rfft(n=12):
+    be = get_backend("numpy", dtype="float32", fft_library="pyfftw", fft_planner="FFTW_MEASURE")
+    a = np.random.default_rng(0).standard_normal((3, n, n, n)).astype(np.float32)
+    return be.rfftn(a, axes=(1, 2, 3))
+
+
+def _wisdom_only_plan(n=12):
+    """Plan the same transform from wisdom alone: FFTW raises RuntimeError when it has none for it."""
+    import pyfftw
+
+    a = pyfftw.empty_aligned((3, n, n, n), dtype=np.float32)
+    b = pyfftw.empty_aligned((3, n, n, n // 2 + 1), dtype=np.complex64)
+    return pyfftw.FFTW(a, b, axes=(1, 2, 3), flags=("FFTW_MEASURE", "FFTW_WISDOM_ONLY"), threads=1)
+
+
+def test_wisdom_path_from_environment(monkeypatch, tmp_path):
+    monkeypatch.setenv(bk.WISDOM_ENV, str(tmp_path / "w.json"))
+    assert bk.fftw_wisdom_path() == tmp_path / "w.json"
+    for off in ("off", "none", "0", ""):
+        monkeypatch.setenv(bk.WISDOM_ENV, off)
+        assert bk.fftw_wisdom_path() is None
+    monkeypatch.delenv(bk.WISDOM_ENV)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert bk.fftw_wisdom_path() == tmp_path / "vesicle-wrinkling" / "fftw-wisdom.json"
+
+
+@needs_pyfftw
+def test_measured_plan_is_stored_and_reused_by_a_later_process(monkeypatch, tmp_path):
+    """A measured plan lands in the wisdom file; a process that starts without wisdom (forget_wisdom) gets the
+    same plan back from the file alone, which is what makes repeated 256^3 runs identical bit for bit."""
+    import pyfftw
+
+    path = tmp_path / "cache" / "w.json"
+    monkeypatch.setenv(bk.WISDOM_ENV, str(path))
+    pyfftw.forget_wisdom()
+    first = _measured_rfft()
+    assert path.exists() and len(bk._read_wisdom(path)) == 3
+    pyfftw.forget_wisdom()
+    with pytest.raises(RuntimeError):
+        _wisdom_only_plan()  # nothing in memory any more: the plan below can only come from the file
+    with bk.persistent_wisdom(pyfftw):
+        _wisdom_only_plan()
+    pyfftw.forget_wisdom()
+    np.testing.assert_array_equal(_measured_rfft(), first)
+
+
+@needs_pyfftw
+def test_estimated_plans_and_disabled_wisdom_write_nothing(monkeypatch, tmp_path):
+    path = tmp_path / "w.json"
+    monkeypatch.setenv(bk.WISDOM_ENV, str(path))
+    be = get_backend("numpy", dtype="float32", fft_library="pyfftw", fft_planner="FFTW_ESTIMATE")
+    be.rfftn(np.ones((3, 8, 8, 8), np.float32), axes=(1, 2, 3))
+    assert not path.exists()
+    monkeypatch.setenv(bk.WISDOM_ENV, "off")
+    _measured_rfft()
+    assert not path.exists()
+
+
+@needs_pyfftw
+def test_bad_wisdom_cache_warns_and_never_stops_a_run(monkeypatch, tmp_path, caplog):
+    path = tmp_path / "w.json"
+    path.write_text("{not json")
+    monkeypatch.setenv(bk.WISDOM_ENV, str(path))
+    with caplog.at_level("WARNING", logger="vesicle_core.backend"):
+        ref = _measured_rfft()
+    assert "unreadable" in caplog.text
+    assert len(bk._read_wisdom(path)) == 3  # rewritten whole
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    monkeypatch.setenv(bk.WISDOM_ENV, str(blocker / "w.json"))  # its folder cannot be created
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="vesicle_core.backend"):
+        np.testing.assert_allclose(_measured_rfft(), ref, rtol=1e-5, atol=1e-4)
+    assert "not usable" in caplog.text

@@ -25,20 +25,37 @@ Normalisation. ``rfftn`` is the unnormalised forward transform (sum over nodes).
 by 1/prod(s) by default (``norm='backward'``, as NumPy); ``norm='forward'`` skips the scaling so a
 solver can fold the 1/N^3 of eq. (19) into its precomputed symbols instead of a pass over the grid.
 
+Reproducibility. An FFTW_MEASURE plan is chosen by timing candidate algorithms, so two processes can pick
+different plans for the same transform, whose results differ in the last bits: three processes planning the
+same 3 x 256^3 float32 r2c transform gave three different outputs. A wrinkling run amplifies that to ~0.1% in
+l_* (two 256^3 runs of the same case: 25.182 and 25.202). So measured plans go through FFTW wisdom kept on
+disk (:func:`fftw_wisdom_path`; ``VESICLE_FFTW_WISDOM=off`` disables it): the first process on a machine
+plans and stores its choice, every later one reuses it, and repeated runs are identical bit for bit (and skip
+the planning time). FFTW_ESTIMATE plans (below 256^3 by default) are deterministic without wisdom.
+
 Thread safety: a Backend caches FFTW plans and scratch arrays; do not share one Backend between
 threads that transform concurrently.
 """
 
 from __future__ import annotations
 
+import base64
+import contextlib
+import json
+import logging
 import math
+import os
+import tempfile
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import numpy as np
 
 from .errors import ConfigError
+
+log = logging.getLogger("vesicle_core.backend")
 
 BACKEND_NAMES = ("numpy", "cupy", "auto")
 DTYPES = ("float64", "float32")
@@ -51,6 +68,83 @@ FFTW_PLANNERS = ("auto", "FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT", "FFTW_
 # process and shape thanks to FFTW wisdom).
 AUTO_MEASURE_POINTS = 1 << 23
 _COMPLEX = {np.dtype("float64"): np.dtype("complex128"), np.dtype("float32"): np.dtype("complex64")}
+
+
+WISDOM_ENV = "VESICLE_FFTW_WISDOM"
+_WISDOM_FORMAT = 1
+
+
+def fftw_wisdom_path() -> Path | None:
+    """Where measured FFTW plans are kept: ``$VESICLE_FFTW_WISDOM`` (a file path; 'off', 'none', '0' or empty
+    disable it), else ``$XDG_CACHE_HOME/vesicle-wrinkling/fftw-wisdom.json`` (``~/.cache`` by default). Wisdom
+    is specific to the machine's FFTW build and CPU; FFTW ignores entries it cannot use."""
+    value = os.environ.get(WISDOM_ENV)
+    if value is not None:
+        value = value.strip()
+        if value.lower() in ("", "off", "none", "0"):
+            return None
+        return Path(value).expanduser()
+    cache = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(cache) / "vesicle-wrinkling" / "fftw-wisdom.json"
+
+
+def _read_wisdom(path: Path):
+    data = json.loads(path.read_text())
+    if data.get("format") != _WISDOM_FORMAT:
+        raise ValueError(f"unknown format {data.get('format')!r}")
+    return tuple(base64.b64decode(w) for w in data["wisdom"])
+
+
+def _write_wisdom(path: Path, wisdom) -> None:
+    text = json.dumps({"format": _WISDOM_FORMAT, "wisdom": [base64.b64encode(w).decode("ascii") for w in wisdom]})
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o644)  # mkstemp makes it private; a shared cache should be readable by the group
+        os.replace(tmp, path)  # atomic: a reader sees the old wisdom or the new, never half a file
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+@contextlib.contextmanager
+def persistent_wisdom(pyfftw):
+    """Plan inside this block with the wisdom on disk loaded first and saved after (see the module docstring).
+
+    An exclusive lock on ``<path>.lock`` serialises planning between processes, so two runs that start together
+    use one plan: the second waits for the first's wisdom instead of measuring its own. A cache that cannot be
+    read or written only costs the reproducibility (a warning); it never stops a run.
+    """
+    path = fftw_wisdom_path()
+    lock = None
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            lock = open(path.with_name(path.name + ".lock"), "a")  # closed in the finally below
+        except OSError as exc:
+            log.warning("FFTW wisdom %s not usable (%s): plans are measured afresh, runs may differ in the "
+                        "last bits", path, exc)
+    if lock is None:
+        yield
+        return
+    try:
+        with contextlib.suppress(ImportError, OSError):
+            import fcntl
+
+            fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            try:
+                pyfftw.import_wisdom(_read_wisdom(path))
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                log.warning("FFTW wisdom %s unreadable (%s): it will be rewritten", path, exc)
+        yield
+        try:
+            _write_wisdom(path, pyfftw.export_wisdom())
+        except OSError as exc:
+            log.warning("FFTW wisdom %s not written (%s)", path, exc)
+    finally:
+        lock.close()  # releases the lock
 
 
 def _import_pyfftw():
@@ -206,19 +300,24 @@ class Backend:
         if effort == "auto":
             effort = "FFTW_MEASURE" if npts >= AUTO_MEASURE_POINTS else "FFTW_ESTIMATE"
         out_shape = list(in_shape)
+        # a measured plan depends on timings, so it goes through the wisdom on disk; an estimated one is
+        # deterministic and needs none
+        wisdom = contextlib.nullcontext() if effort == "FFTW_ESTIMATE" else persistent_wisdom(pyfftw)
         if kind == "r2c":
             out_shape[axes[-1]] = in_shape[axes[-1]] // 2 + 1
             ain = pyfftw.empty_aligned(in_shape, dtype=rdt)
             aout = pyfftw.empty_aligned(tuple(out_shape), dtype=cdt)
-            obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_FORWARD",
-                              flags=(effort,), threads=self.fft_workers)
+            with wisdom:
+                obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_FORWARD",
+                                  flags=(effort,), threads=self.fft_workers)
         else:
             for ax, n in zip(axes, s, strict=True):
                 out_shape[ax] = n
             ain = pyfftw.empty_aligned(in_shape, dtype=cdt)
             aout = pyfftw.empty_aligned(tuple(out_shape), dtype=rdt)
-            obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_BACKWARD",
-                              flags=(effort, "FFTW_DESTROY_INPUT"), threads=self.fft_workers)
+            with wisdom:
+                obj = pyfftw.FFTW(ain, aout, axes=axes, direction="FFTW_BACKWARD",
+                                  flags=(effort, "FFTW_DESTROY_INPUT"), threads=self.fft_workers)
         plan = (obj, tuple(out_shape))
         self._plans[key] = plan
         return plan
