@@ -5,6 +5,7 @@ from itertools import pairwise
 import numpy as np
 import pytest
 
+from vesicle_core import stokes as stokes_mod
 from vesicle_core.backend import get_backend
 from vesicle_core.errors import ConfigError
 from vesicle_core.ibm import Grid, prepare, spread
@@ -295,6 +296,38 @@ def test_interleave_flag_selects_the_layout(be):
     assert StokesSolver(g, fake_gpu, interleave=True).interleaved
     with pytest.raises(ConfigError, match="interleave"):
         StokesSolver(g, be, interleave="no")
+
+
+needs_numba = pytest.mark.skipif(stokes_mod._compiled_steady_pass() is None, reason="numba not installed")
+
+
+@needs_numba
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_compiled_steady_pass_is_bitwise_the_numpy_passes(dtype):
+    """The numba pass does the NumPy passes' float operations in the same order: identical velocities, so
+    switching it on changes no result (the reason it may be the default)."""
+    be = get_backend("numpy", dtype=dtype)
+    g = Grid(24, 5.0)
+    f = np.random.default_rng(3).standard_normal((3, 24, 24, 24))
+    fused, plain = StokesSolver(g, be), StokesSolver(g, be, fused=False)
+    assert fused.fused and not plain.fused
+    np.testing.assert_array_equal(fused.velocity(f), plain.velocity(f))
+    np.testing.assert_array_equal(fused.step(f, 3.7e-5), plain.step(f, 3.7e-5))
+    u = fused.velocity(f)
+    assert np.abs(_div(u, g.h)).max() < (1e-9 if dtype == "float64" else 1e-3) * np.abs(u).max() / g.h
+
+
+def test_compiled_steady_pass_flag(be, monkeypatch):
+    g = Grid(16, 5.0)
+    assert not StokesSolver(g, be, interleave=False).fused  # the GPU layout has no compiled pass
+    with pytest.raises(ConfigError, match="interleaved"):
+        StokesSolver(g, be, interleave=False, fused=True)
+    with pytest.raises(ConfigError, match="fused"):
+        StokesSolver(g, be, fused="yes")
+    monkeypatch.setattr(stokes_mod, "_compiled_steady_pass", lambda: None)
+    assert not StokesSolver(g, be).fused  # no numba: the NumPy passes, silently
+    with pytest.raises(ConfigError, match="numba"):
+        StokesSolver(g, be, fused=True)
 
 
 @pytest.mark.parametrize("fft", ["same-fft", "xp-fft"])
