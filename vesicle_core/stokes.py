@@ -120,7 +120,12 @@ def _compiled_steady_pass():
     except ImportError:
         return None
     # no fastmath: contracting a * b + c into a fused multiply-add would change the rounding
-    return numba.njit(cache=True, nogil=True, boundscheck=False)(_steady_pass)
+    kernel = numba.njit(cache=True, nogil=True, boundscheck=False)(_steady_pass)
+    try:  # compile now: a package folder and user cache that are both read-only make caching raise here
+        kernel(np.zeros((3, 2, 2, 4)), np.zeros(2), np.zeros(2), np.zeros((2, 2, 2)), np.zeros((2, 2, 2)))
+    except RuntimeError:
+        kernel = numba.njit(cache=False, nogil=True, boundscheck=False)(_steady_pass)
+    return kernel
 
 
 def _psi(x):
