@@ -162,3 +162,27 @@ def test_small_run_conserves_area_and_volume(tmp_path):
         a = np.abs(ds.area_drift.values).max()
         v = np.abs(ds.volume_drift.values).max()
     assert a < 0.01 and v < 0.01, (a, v)
+
+
+def test_wall_clock_checkpoint_when_steps_are_few(tmp_path, monkeypatch):
+    """An adaptive 256^3 run takes fewer steps than checkpoint_every: the wall-time rule still checkpoints it, so
+    a job killed without a signal loses at most CHECKPOINT_WALL_S. With the interval at 0, every step writes one;
+    with the default, a short run writes none before it completes."""
+    from vesicle_core import simulate
+
+    m = _mesh(level=2)
+    cfg = RunConfig(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=10**6, Lambda=1e4,
+                    K_volume=1e5, dt=2e-4)
+    saved = []
+    save = simulate.save_checkpoint
+
+    def counting_save(path, state, *args):
+        saved.append(state.step)
+        return save(path, state, *args)
+
+    monkeypatch.setattr(simulate, "save_checkpoint", counting_save)
+    assert run(m, cfg, tmp_path / "a", progress=False, stop_after_steps=5) is None
+    assert saved == []
+    monkeypatch.setattr(simulate, "CHECKPOINT_WALL_S", 0.0)
+    assert run(m, cfg, tmp_path / "b", progress=False, stop_after_steps=5) is None
+    assert saved == [1, 2, 3, 4, 5]

@@ -102,6 +102,11 @@ def _num(x) -> str:
 
 
 _SCHEMES = ("explicit", "projection", "inextensible")
+# A checkpoint is also written once this much wall time has passed since the last one, whatever checkpoint_every
+# says: an adaptive 256^3 run takes ~400 steps in ~1 h, so the step count alone would leave it without any
+# checkpoint, and a job killed without a signal (node failure, SIGKILL) would lose all of it. A 10242-vertex
+# checkpoint takes ~10 ms to write.
+CHECKPOINT_WALL_S = 600.0
 _KERNELS = tuple(KERNELS)
 
 #: parameters of one IBM run (``vesicle run``, ``RunConfig``), in solver units (R, kappa, tau = mu R^3 / kappa)
@@ -227,7 +232,8 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "checkpoint_every",
         2000,
         "int",
-        "steps between checkpoints (a restarted job resumes from the last one)",
+        f"steps between checkpoints; one is also written after every {CHECKPOINT_WALL_S / 60:g} min of wall time "
+        "and on SIGINT/SIGTERM (a restarted job resumes from the last one)",
         "",
         1,
         None,

@@ -23,7 +23,8 @@ flow is resolved; ``dt_rule="formula"`` uses the formula only; a number fixes dt
 
 Robustness. Output frames are appended to ``trajectory.partial.nc``; it becomes ``trajectory.nc``
 only when the run is complete. ``checkpoint.nc`` is rewritten atomically every ``checkpoint_every``
-steps; rerunning the same command resumes from it and ends bit-identical to an uninterrupted run.
+steps, after every ``parameters.CHECKPOINT_WALL_S`` of wall time and on SIGINT/SIGTERM; rerunning the same
+command resumes from it and ends bit-identical to an uninterrupted run.
 NaN/Inf, a blow-up or an area/volume drift beyond ``max_drift`` stops the run with
 NumericalInstability, a diagnostic file ``failure.nc`` and no complete-looking trajectory.
 
@@ -49,6 +50,7 @@ from . import membrane as B
 from .errors import NumericalInstability
 from .flow import background_velocity
 from .mobility import IBMSolver
+from .parameters import CHECKPOINT_WALL_S
 from .run_config import SCHEMES, RunConfig, default_lambda, load_config
 from .trajectory import (
     CHECKPOINT,
@@ -305,7 +307,7 @@ class _Run:
                                        _trajectory_attrs(mesh, cfg, solver, dt, self.adaptive),
                                        state.n_frames if self.resumed else None, velocity=cfg.store_velocity)
         self.bar = self._progress_bar(progress)
-        self.wall0 = _time.perf_counter()
+        self.wall0 = self.last_checkpoint = _time.perf_counter()
         self.steps_this_call = 0
         self.eps_t = 1e-9 * T
         self.t_stretch_end = cfg.stretch * T
@@ -470,7 +472,7 @@ class _Run:
         self.steps_this_call += 1
         if state.step % 16 == 0 and not bool(self.xp.isfinite(state.X).all()):
             self.fail("NaN or Inf in vertex positions (time step too large?)", X)
-        if state.step % cfg.checkpoint_every == 0:
+        if state.step % cfg.checkpoint_every == 0 or _time.perf_counter() - self.last_checkpoint >= CHECKPOINT_WALL_S:
             self.checkpoint()
 
     def checkpoint(self) -> None:
@@ -481,6 +483,7 @@ class _Run:
             save_checkpoint(self.outdir / CHECKPOINT, self.state, self.be, u_hat)
         finally:
             self.state.wall_s = wall0
+        self.last_checkpoint = _time.perf_counter()
 
     def finalize(self) -> Path:
         """Move the complete trajectory to trajectory.nc with the run's statistics; drop the checkpoint."""
