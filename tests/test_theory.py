@@ -365,3 +365,21 @@ def test_theory_cli_grid_h_writes_the_damped_pa(tmp_path):
     with xr.open_dataset(out) as ds:
         assert ds.attrs["grid_h"] == 0.0390625 and ds.attrs["kernel"] == "peskin4"
         assert abs(float(ds.l_star) - solve(0.116, 553.0, grid_h=0.0390625).l_star) < 1e-9
+
+
+def test_truncation_warning_only_where_the_truncation_matters():
+    """Continuum PA cut at a small l_max: the wrinkles reach the cut and l_* moves, so it warns. The PA on a
+    grid: the modes the grid cannot move keep their (tiny) seed amplitude up to any l_max, l_* does not move
+    with l_max, and it stays silent."""
+    import warnings
+
+    from vesicle_core.theory import solve
+
+    with pytest.warns(UserWarning, match="truncation"):
+        cut = solve(0.116, 2224.0, l_max=16)
+    assert abs(cut.l_star / solve(0.116, 2224.0).l_star - 1) > 0.05
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        a = solve(0.116, 2224.0, grid_h=5.0 / 128, l_max=62)
+    b = solve(0.116, 2224.0, grid_h=5.0 / 128, l_max=100)
+    assert a.l_max_nontrivial == 62 and abs(a.l_star / b.l_star - 1) < 1e-4
