@@ -173,3 +173,17 @@ def test_tension_decay_on_perturbation_analysis(S, expected):
     assert res.ci_low < res.exponent < res.ci_high
     assert st.t_stage1_end < st.t_stage2_start < st.t_stage2_end < float(ds["t_star"]) < st.t_recovery
     assert float(ds["t_star"]) - st.t_stage2_end < 0.15 * float(ds["t_star"])
+
+
+def test_local_decay_exponent_against_analytic_curves():
+    from vesicle_core.fits import local_decay_exponent
+
+    t = np.geomspace(0.01, 1.0, 400)
+    np.testing.assert_allclose(local_decay_exponent(t, -3.0 * t**-0.8), 0.8, rtol=1e-12)
+    # |sigma| = t^-a exp(-t / tau): a(t) = a + t / tau, a curved log-log line that no single exponent fits
+    a = local_decay_exponent(t + 0.5, -((t) ** -0.7) * np.exp(-t / 0.2), t0=0.5)
+    np.testing.assert_allclose(a[1:-1], 0.7 + t[1:-1] / 0.2, rtol=2e-4)
+    with pytest.raises(ConfigError, match="zero"):
+        local_decay_exponent(t, np.where(t < 0.5, -1.0, 0.0))
+    with pytest.raises(ConfigError, match="positive"):
+        local_decay_exponent(t, -(t**-0.8), t0=0.5)

@@ -54,6 +54,7 @@ __all__ = [
     "detect_tension_stages",
     "TensionDecayFit",
     "tension_decay",
+    "local_decay_exponent",
 ]
 
 
@@ -410,6 +411,21 @@ def tension_decay(time, sigma, *, t0: float = 0.0, confidence: float = 0.95, pla
 
 
 # --------------------------------------------------------------------------- sweep-level fits from files
+def local_decay_exponent(time, sigma, *, t0: float = 0.0) -> np.ndarray:
+    """The local exponent a(t) = -d ln|sigma| / d ln(t - t0) at each sample (centred differences in ln t,
+    one-sided at the ends): constant, and equal to the fitted ``a``, only where |sigma| is a true power law.
+    A stage-2 fit over a window where a(t) varies returns a value that depends on the window."""
+    t = _as_1d("time", time) - float(t0)
+    s = _as_1d("sigma", sigma)
+    if t.shape != s.shape or t.size < 3:
+        raise ConfigError(f"need time and sigma of equal length >= 3, got {t.size} and {s.size}")
+    if not (np.all(t > 0) and np.all(np.diff(t) > 0)):
+        raise ConfigError("time - t0 must be positive and strictly increasing")
+    if np.any(s == 0):
+        raise ConfigError("sigma crosses zero inside the samples: the local exponent is defined on one side only")
+    return -np.gradient(np.log(np.abs(s)), np.log(t))
+
+
 def case_decay(ds, kind, confidence: float = 0.95) -> TensionDecayFit:
     """Stage-2 decay fit of one dataset's sigma(time) after the reversal; the simulation's noisier tension is
     smoothed over 3 frames and its stage windows may deviate 5% from a power law (the PA's 1%)."""

@@ -218,10 +218,14 @@ def collect(manifest) -> dict:
     import xarray as xr
 
     rows = []
+    pa_local = {}
     for case in manifest["cases"]:
         with xr.open_dataset(case["trajectory"]) as traj, xr.open_dataset(case["spectra"]) as spec, \
                 xr.open_dataset(case["theory"]) as theo:
             rows.append(_run_row(case, traj.load(), spec.load(), theo.load()))
+            S = rows[-1]["S"]
+            if S not in pa_local and _paper_decay(S) is not None and rows[-1]["delta"] < 0.5:
+                pa_local[S] = pa_local_decay(theo, _paper_decay(S))
     fits = {}
     for group, path in (manifest.get("fits") or {}).items():
         with xr.open_dataset(path) as f:
@@ -232,7 +236,7 @@ def collect(manifest) -> dict:
             box = box_comparison(a.load(), b.load())
         small = [r for r in rows if r["group"] == "box" and abs(r["L"] - box["L_small"]) < 1e-9]
         box["tension_pa"] = small[0]["pa_stretch_tension"] if small else math.nan
-    data = {"rows": rows, "fits": fits, "box": box, "relaxation": None, "cutoff": None}
+    data = {"rows": rows, "fits": fits, "box": box, "relaxation": None, "cutoff": None, "pa_local_decay": pa_local}
     ladder = _ladder_rows(rows)
     if ladder and manifest.get("relaxation", True):
         data["relaxation"] = relaxation_table(sorted({(r["N"], r["vertices"], r["L"]) for r in ladder}))
@@ -245,6 +249,41 @@ def collect(manifest) -> dict:
         paper_grid = [{**r, "N": N, "h": L / N, "kernel": DEFAULT_KERNEL} for r in rows if r["group"] == "fine"]
         data["damped_pa"].update(damped_pa_table(paper_grid))
     return data
+
+
+def _paper_decay(S):
+    return next((v for k, v in PAPER_DECAY.items() if abs(k - S) / k < 0.02), None)
+
+
+def pa_local_decay(theo, paper=None) -> dict:
+    """How far the PA's stage-2 tension is from one power law: the local exponent a(t) = -d ln|sigma|/d ln t
+    (fits.local_decay_exponent) on the theory dataset's own samples, inside the stage-2 window that the fitted
+    exponent uses (same rule and tolerances as fits.case_decay), and from the end of stage 1 to that window's
+    end. ``paper``: the gamma_dot t at which a(t) first equals it there (None if it never does)."""
+    from .fits import detect_tension_stages, local_decay_exponent
+
+    t = np.asarray(theo["time"].values, dtype=float)
+    sig = np.asarray(theo["sigma"].values, dtype=float)
+    keep = t > 0
+    t, sig = t[keep], sig[keep]
+    try:
+        st = detect_tension_stages(t, sig, smooth=1, rms_tol=0.01)
+    except Exception:  # no clean stage 2: nothing to say
+        return {}
+    lo, hi = st.i_stage2
+    i1 = int(np.searchsorted(t, st.t_stage1_end))
+    a = local_decay_exponent(t[i1:hi], sig[i1:hi])
+    w = a[lo - i1:]
+    out = {"t_stage1_end": float(st.t_stage1_end), "t_start": float(t[lo]), "t_end": float(t[hi - 1]),
+           "a_min": float(w.min()), "a_max": float(w.max()), "a_min_from_stage1": float(a.min()), "paper": paper,
+           "t_paper": None}
+    if paper is not None:
+        cross = np.nonzero((a[:-1] - paper) * (a[1:] - paper) <= 0)[0]
+        if cross.size:
+            k = int(cross[0])
+            f = (paper - a[k]) / (a[k + 1] - a[k]) if a[k + 1] != a[k] else 0.0
+            out["t_paper"] = float(t[i1 + k] + f * (t[i1 + k + 1] - t[i1 + k]))
+    return out
 
 
 # --------------------------------------------------------------------------- computed side studies
@@ -453,6 +492,7 @@ def render(manifest, data) -> str:
     md += _render_exponents(fine, summary, f, fit_power_law, data.get("damped_pa"))
     if summary:
         md += _render_decay(summary, f, data.get("damped_pa"))
+        md += _render_pa_local_decay(data.get("pa_local_decay"))
     if data.get("relaxation"):
         md += _render_relaxation(data["relaxation"], summary)
     md += _render_seeds(rows, data.get("damped_pa"))
@@ -608,7 +648,7 @@ def _render_decay(summary, f, dpa=None):
     dpa = dpa or {}
     rows = []
     for S, s in summary.items():
-        paper = next((v for k, v in PAPER_DECAY.items() if abs(k - S) / k < 0.02), None)
+        paper = _paper_decay(S)
         pa = _pa_decay(f, 0.116, S)
         for r in s["rungs"]:
             d = _decay(f, r["case_id"])
@@ -626,6 +666,34 @@ def _render_decay(summary, f, dpa=None):
                            f"{_fmt(row[5])})" for row in finest)
         md += ["", f"Finding (finest rung): {text}."]
     md.append("")
+    return md
+
+
+def _render_pa_local_decay(local):
+    """Is the PA's stage 2 one power law? Its local exponent across the fitted window and from stage 1 on."""
+    local = {S: v for S, v in (local or {}).items() if v}
+    if not local:
+        return []
+    md = ["### Is stage 2 one power law? The PA's local exponent", "",
+          "a(t) = -d ln|sigma| / d ln(gamma_dot t) on the PA's own samples (fits.local_decay_exponent): inside the "
+          "stage-2 window the fitted a uses, and from the end of stage 1 (the tension leaving its plateau) to that "
+          "window's end. The paper gives its exponents without a window.", ""]
+    rows = [[S, v["t_stage1_end"], v["t_start"], v["t_end"], v["a_min"], v["a_max"], v["a_min_from_stage1"],
+             v["paper"], v["t_paper"]] for S, v in sorted(local.items())]
+    md.append(_table(["S", "stage 1 ends", "window from", "window to", "a(t) min in window", "max in window",
+                      "min from stage-1 end", "paper", "gamma_dot t where a(t) = paper"], rows))
+    out = []
+    for S, v in sorted(local.items()):
+        spread = v["a_max"] / v["a_min"] if v["a_min"] > 0 else math.inf
+        shape = (f"varies by a factor {spread:.2f} inside the fitted window" if spread > 1.1 else
+                 "is constant within 10% inside the fitted window")
+        where = (f"a(t) equals the paper's {v['paper']:g} at gamma_dot t = {v['t_paper']:.3f}, "
+                 + ("before" if v["t_paper"] < v["t_start"] else "inside")
+                 + " the window, so a short window around that time would return about the paper's value"
+                 if v["t_paper"] is not None else
+                 f"a(t) never equals the paper's {_fmt(v['paper'])} between the end of stage 1 and the window's end")
+        out.append(f"S = {S:g}: the PA's local exponent {shape} ({v['a_min']:.2f} to {v['a_max']:.2f}); {where}.")
+    md += ["", "Finding: " + " ".join(out), ""]
     return md
 
 
@@ -889,7 +957,7 @@ def discussion(data, summary=None) -> list[str]:
         for S, s in summary.items():
             a = [(r["N"], _decay(f, r["case_id"])) for r in s["rungs"]]
             a = [(N, d[0]) for N, d in a if d and math.isfinite(d[0])]
-            paper = next((v for k, v in PAPER_DECAY.items() if abs(k - S) / k < 0.02), None)
+            paper = _paper_decay(S)
             if len(a) >= 2 and paper:
                 falling = all(y < x for (_, x), (_, y) in zip(a, a[1:], strict=False))
                 out.append(f"- Stage-2 decay exponent at S = {S:g}: " + ", ".join(f"{x:.2f} (N = {N})" for N, x in a)
