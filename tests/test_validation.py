@@ -198,27 +198,29 @@ def test_cost_names_resumed_runs_whose_earlier_calls_were_not_timed():
     assert "Resumed runs" not in " ".join(_render_cost(rows[1:]))
 
 
-def test_pa_local_decay_brackets_the_fitted_exponent():
+def test_local_decay_brackets_the_fitted_exponent():
     """A least-squares slope over a window is a weighted mean of the local slopes in it, so the fitted stage-2
     exponent must lie between the local exponent's extremes over the same window."""
     from vesicle_core.fits import case_decay
-    from vesicle_core.validation import pa_local_decay
+    from vesicle_core.validation import local_decay
 
     th = run_theory(0.116, 2224.0, store_modes=False)
     fit = case_decay(th, "theory")
-    loc = pa_local_decay(th, paper=0.8108)
+    loc = local_decay(th, "theory", paper=0.8108)
     assert loc["a_min"] <= fit.exponent <= loc["a_max"]
     assert loc["t_stage1_end"] < loc["t_start"] < loc["t_end"]
     assert loc["a_min_from_stage1"] <= loc["a_min"]
     assert loc["t_paper"] is None or loc["t_stage1_end"] <= loc["t_paper"] <= loc["t_end"]
 
 
-def test_pa_local_decay_finding_follows_the_numbers():
-    from vesicle_core.validation import _render_pa_local_decay
+def test_local_decay_finding_follows_the_numbers():
+    from vesicle_core.validation import _render_local_decay
 
     base = {"t_stage1_end": 0.02, "t_start": 0.05, "t_end": 0.17, "a_min_from_stage1": 0.2, "paper": 0.81}
-    md = "\n".join(_render_pa_local_decay({2224.0: {**base, "a_min": 0.86, "a_max": 1.21, "t_paper": 0.03}}))
-    assert "varies by a factor 1.41" in md and "0.030, before the window" in md
-    md = "\n".join(_render_pa_local_decay({2224.0: {**base, "a_min": 1.0, "a_max": 1.05, "t_paper": None}}))
-    assert "constant within 10%" in md and "never equals" in md
-    assert _render_pa_local_decay({}) == []
+    pa = {**base, "a_min": 0.86, "a_max": 1.21, "t_paper": 0.03}
+    run = {**base, "a_min": 1.0, "a_max": 1.05, "t_paper": None}
+    summary = {2224.0: {"rungs": [{"N": 128, "local_decay": {}}, {"N": 256, "local_decay": run}]}}
+    md = "\n".join(_render_local_decay({("PA", 2224.0): pa}, summary))
+    assert "this PA: the local exponent varies by a factor 1.41" in md and "0.030, before the window" in md
+    assert "IBM, N = 256: the local exponent is constant within 10%" in md and "never equals" in md
+    assert _render_local_decay({}, {}) == []
