@@ -224,3 +224,13 @@ def test_local_decay_finding_follows_the_numbers():
     assert "this PA: the local exponent varies by a factor 1.41" in md and "0.030, before the window" in md
     assert "IBM, N = 256: the local exponent is constant within 10%" in md and "never equals" in md
     assert _render_local_decay({}, {}) == []
+
+
+def test_local_decay_clause_follows_the_numbers():
+    from vesicle_core.validation import _local_decay_clause
+
+    v = {"a_min": 0.86, "a_max": 1.21, "t_paper": 0.03}
+    assert "factor 1.41" in _local_decay_clause(v) and "0.030" in _local_decay_clause(v)
+    assert "does not matter" in _local_decay_clause({**v, "a_max": 0.9})
+    assert "passes" not in _local_decay_clause({**v, "t_paper": None})
+    assert _local_decay_clause({}) == "" and _local_decay_clause(None) == ""

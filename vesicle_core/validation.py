@@ -708,6 +708,19 @@ def _render_local_decay(pa_local, summary):
     return md
 
 
+def _local_decay_clause(v) -> str:
+    """One sentence for the conclusions: does the PA's own stage-2 curve make the exponent window-dependent?"""
+    if not v or not v["a_min"] > 0:
+        return ""
+    spread = v["a_max"] / v["a_min"]
+    if spread <= 1.1:
+        return " The PA's local exponent is constant within 10% over its window, so the window does not matter."
+    text = f" The PA's own local exponent varies by a factor {spread:.2f} over its fitted window"
+    if v["t_paper"] is not None:
+        text += f" and passes the paper's value at gamma_dot t = {v['t_paper']:.3f}"
+    return text + ": a single exponent depends on the fitting window, which the paper does not give."
+
+
 def _damped_decay_finding(rows):
     """Per S: is the IBM's decay exponent within the 95% interval of, or how far from, the grid's PA value?"""
     out = []
@@ -976,7 +989,7 @@ def discussion(data, summary=None) -> list[str]:
                            + (("it falls with every refinement, so it is not converged; the paper's value lies "
                                + ("below" if paper < a[-1][1] else "above") + " the finest rung's")
                               if falling else "no monotone trend with N")
-                           + ".")
+                           + "." + _local_decay_clause(data.get("pa_local_decay", {}).get(("PA", S))))
     var = [r for r in data["rows"] if r["group"] == "variation"]
     base = {(r["S"], r["N"]): r for r in _ladder_rows(data["rows"])}
     moves = [(r["tag"], r["sim_l_star"] / base[(r["S"], r["N"])]["sim_l_star"] - 1) for r in var
