@@ -299,8 +299,6 @@ def damped_pa_table(rows) -> dict:
     """The PA as each run's grid carries it (theory.grid_damping): {(S, N, kernel): {l_star, l_peak, t_star,
     decay}} for the quasi-spherical runs at L = 5 R. The damping comes from single-mode relaxation, not from
     wrinkling runs."""
-    import warnings
-
     from .fits import case_decay
     from .theory import run_theory
 
@@ -309,17 +307,13 @@ def damped_pa_table(rows) -> dict:
         key = (r["S"], r["N"], r["kernel"])
         if r["delta"] >= 0.5 or key in out or abs(r["L"] - 5.0) > 1e-9:
             continue
-        with warnings.catch_warnings():
-            # damped modes above the unstable band decay slowly and stay above the 'nontrivial' threshold up to
-            # the truncation; they hold ~1e-10 of Delta_l and do not move l_* (eq. 31)
-            warnings.simplefilter("ignore", UserWarning)
-            th = run_theory(r["delta"], r["S"], grid_h=r["h"], kernel=r["kernel"], store_modes=False)
+        th = run_theory(r["delta"], r["S"], grid_h=r["h"], kernel=r["kernel"], store_modes=False)
         try:
             decay = case_decay(th, "theory").exponent
         except (ValueError, ConfigError):
             decay = math.nan
-        out[key] = {"l_star": float(th.l_star), "l_peak": float(th.l_peak),
-                                 "t_star": float(th.t_star), "decay": decay}
+        out[key] = {"l_star": float(th.l_star), "l_peak": float(th.l_peak), "t_star": float(th.t_star),
+                    "decay": decay, "local_decay": local_decay(th, "theory", _paper_decay(r["S"]))}
     return out
 
 
@@ -496,7 +490,7 @@ def render(manifest, data) -> str:
     md += _render_exponents(fine, summary, f, fit_power_law, data.get("damped_pa"))
     if summary:
         md += _render_decay(summary, f, data.get("damped_pa"))
-        md += _render_local_decay(data.get("pa_local_decay"), summary)
+        md += _render_local_decay(data.get("pa_local_decay"), summary, data.get("damped_pa"))
     if data.get("relaxation"):
         md += _render_relaxation(data["relaxation"], summary)
     md += _render_seeds(rows, data.get("damped_pa"))
@@ -673,15 +667,21 @@ def _render_decay(summary, f, dpa=None):
     return md
 
 
-def _render_local_decay(pa_local, summary):
-    """Is stage 2 one power law? The local exponent of the PA and of the finest rung's run, per S."""
+def _render_local_decay(pa_local, summary, dpa=None):
+    """Is stage 2 one power law? The local exponent of the PA, of the PA on the finest rung's grid and of the
+    finest rung's run, per S."""
     entries = []  # (S, label, dict)
     for S, s in (summary or {}).items():
         pa = (pa_local or {}).get(("PA", S))
         if pa:
             entries.append((S, "this PA", pa))
         finest = max(s["rungs"], key=lambda r: r["N"]) if s.get("rungs") else None
-        if finest and finest.get("local_decay"):
+        if finest is None:
+            continue
+        grid = dpa.get(_dkey(finest), {}).get("local_decay") if dpa else None
+        if grid:
+            entries.append((S, f"PA on the N = {finest['N']} grid", grid))
+        if finest.get("local_decay"):
             entries.append((S, f"IBM, N = {finest['N']}", finest["local_decay"]))
     if not entries:
         return []
