@@ -2,7 +2,9 @@
 
 Run by hand:
     python benchmarks/bench_schemes.py [--N 64] [--n-vertices 642] [--chi 267.8] [--schemes explicit inextensible]
-        [--lambda-explicit 1e7] [--stretch 1] [--t-end 1] [--out DIR]
+        [--lambda-explicit 1e7] [--stretch 1] [--t-end 1] [--dtype float64] [--out DIR]
+
+A scheme may carry the inextensible scheme's CG preconditioner after a slash: `inextensible/local`.
 
 * explicit: the paper's method, the stiff area penalty alone (Lambda = 1.5e4 chi by default; --lambda-explicit
   sets it, e.g. 1e7 for a strain <= 0.1% at chi = 268);
@@ -60,10 +62,13 @@ def inextensibility(ds):
             "checkerboard_median": float(np.median(r[w, 4]))}
 
 
-def one(scheme, mesh, a, outdir):
+def one(label, mesh, a, outdir):
+    scheme, _, precond = label.partition("/")
     kw = {"Lambda": a.lambda_explicit} if scheme == "explicit" and a.lambda_explicit else {}
+    if precond:
+        kw["cg_precond"] = precond
     cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
-                    fft_workers=a.fft_workers, **kw)
+                    fft_workers=a.fft_workers, dtype=a.dtype, **kw)
     t = time.perf_counter()
     path = run(mesh, cfg, outdir, progress=False)
     wall = time.perf_counter() - t
@@ -71,10 +76,12 @@ def one(scheme, mesh, a, outdir):
         ds = ds.load()
     spec = spectra_from_trajectory(ds)
     row = {
-        "scheme": scheme, "steps": int(ds.attrs["steps"]), "stokes_solves": ds.attrs.get("stokes_solves", np.nan),
+        "scheme": label, "steps": int(ds.attrs["steps"]), "stokes_solves": ds.attrs.get("stokes_solves", np.nan),
         "cg_median": ds.attrs.get("cg_iterations_median", np.nan),
         "cg_mean": ds.attrs.get("cg_iterations_mean", np.nan),
-        "cg_max": ds.attrs.get("cg_iterations_max", np.nan), "wall_s": wall, "Lambda": ds.attrs["Lambda_eff"],
+        "cg_max": ds.attrs.get("cg_iterations_max", np.nan), "wall_s": wall,
+        "Lambda": ds.attrs["Lambda_eff"],
+        "precond_s": ds.attrs.get("cg_precond_s", np.nan),  # local preconditioner: build, factorise, apply
         "max_volume_drift": float(np.abs(ds.volume_drift).max()), **inextensibility(ds),
         "l_star": float(spec.l_star), "l_peak": float(spec.l_peak), "t_star": float(spec.t_star),
     }
@@ -91,6 +98,7 @@ def main():
     ap.add_argument("--schemes", nargs="+", default=["explicit", "projection", "inextensible"])
     ap.add_argument("--lambda-explicit", type=float, default=None)
     ap.add_argument("--fft-workers", type=int, default=1)
+    ap.add_argument("--dtype", default="float64", choices=("float64", "float32"), help="grid fields and FFTs")
     ap.add_argument("--out", default=None, help="keep the runs here (default: a temporary directory)")
     a = ap.parse_args()
     mesh = M.make_vesicle("quasiuniform", n_vertices=a.n_vertices, axes=(1.0, 0.8, 1.0))

@@ -205,7 +205,14 @@ class Inextensible(Integrator):
         return {"cg_iterations_median": float(np.median(it)), "cg_iterations_mean": float(it.mean()),
                 "cg_iterations_max": int(it.max()),
                 "stokes_solves": int(it.size + it.sum()),  # one for the warm-start velocity, one per iteration
-                "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0))}  # local -> compliance repeats (this call)
+                "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0)),  # local -> compliance repeats (this call)
+                **self._precond_stats()}
+
+    def _precond_stats(self) -> dict:
+        local = self.tension.local
+        if local is None:
+            return {}
+        return {"cg_precond_factorisations": int(local.factorisations), "cg_precond_s": float(local.seconds)}
 
 
 SCHEMES = {"explicit": Explicit, "projection": Projection, "inextensible": Inextensible}

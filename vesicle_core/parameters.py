@@ -289,8 +289,8 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "inextensible: CG preconditioner. local adds the IBM's measured "
         "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
-        "helps up to 128^3; at 256^3 the truncated mobility loses definiteness and the solve falls back to "
-        "compliance (slow)",
+        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 the truncated "
+        "mobility loses definiteness and the solve falls back to compliance (slow)",
         choices=("compliance", "local"),
     ),
     Parameter(
