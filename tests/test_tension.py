@@ -249,3 +249,58 @@ def test_run_records_the_solve_cost(tmp_path):
         assert attrs["stokes_solves"] == attrs["steps"] + round(attrs["cg_iterations_mean"] * attrs["steps"])
     assert "cg_precond_s" not in out["compliance"]
     assert out["local"]["cg_precond_factorisations"] >= 1 and out["local"]["cg_precond_s"] > 0
+
+
+def test_smallest_eigenvalue_lanczos_and_its_safe_bound(monkeypatch):
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from vesicle_core.tension import smallest_eigenvalue
+
+    rng = np.random.default_rng(3)
+    n = 800
+    B = sp.random(n, n, density=0.01, random_state=rng)
+    A = (B + B.T + sp.diags(rng.uniform(0.5, 1.0, n))).tocsr()
+    exact = np.linalg.eigvalsh(A.toarray())[0]
+    assert abs(smallest_eigenvalue(A) - exact) <= 1e-3 * np.abs(np.linalg.eigvalsh(A.toarray())).max()
+
+    def no_convergence(*a, **k):
+        raise spla.ArpackNoConvergence("no", np.array([]), np.array([]))
+
+    monkeypatch.setattr(spla, "eigsh", no_convergence)
+    assert smallest_eigenvalue(A) <= exact  # Gershgorin: a lower bound, so the shift errs on the safe side
+
+
+def test_local_preconditioner_shifts_an_indefinite_local_mobility():
+    """With edges ~ h (642 vertices at N = 32) the truncated pair mobility within 3h is indefinite; the build shifts
+    it so P is positive definite, and the CG then reaches the compliance-preconditioned solution."""
+    import scipy.sparse as sp
+
+    from vesicle_core.mobility import local_mobility_matrix
+    from vesicle_core.tension import LocalPreconditioner, face_D_matrix
+
+    m = Mm.make_vesicle("quasiuniform", n_vertices=642, axes=(1.0, 0.8, 1.0))
+    s = IBMSolver(m.faces, m.vertices, RunConfig(chi=268.0, N=32, scheme="inextensible"))
+    X = s.xp.asarray(m.vertices)
+    F, geo = s.forces(X)
+    mob = IBMMobility(s.coupler, s.stokes)
+    topo = s.membrane.topo
+    local = LocalPreconditioner(mob, topo, geo.area.copy(), 1.34e7)
+    M_loc = local_mobility_matrix(m.vertices, local.table, r_cut=local.r_cut)
+    lam = np.linalg.eigvalsh(M_loc.toarray())[0]
+    assert lam < 0  # the premise: truncation made it indefinite
+    mob.prepare(X)
+    dt = 3.7e-5
+    local(np.ones(geo.area.shape[0]), geo, dt)
+    assert local.shift == pytest.approx(local.margin * local.table.self_mobility - lam, rel=1e-5)
+    D = face_D_matrix(geo, topo)
+    P = dt * (D @ (M_loc + local.shift * sp.identity(M_loc.shape[0])) @ D.T) + sp.diags(geo.area / 1.34e7)
+    assert np.linalg.eigvalsh(P.toarray())[0] > 0
+    u_inf = 268.0 * np.c_[-X[:, 0], X[:, 1], 0 * X[:, 2]]
+    zero = np.zeros(geo.area.shape[0])
+    out = []
+    for pre in (None, local):
+        ts = TensionSolver(mob, topo, geo.area.copy(), 1.34e7, tol=1e-10, maxiter=2000, local=pre)
+        out.append(ts.solve(geo, F, u_inf, zero, dt, zero)[0])
+        assert getattr(ts, "fallbacks", 0) == 0
+    assert np.abs(out[1] - out[0]).max() <= 1e-3 * np.abs(out[0]).max()

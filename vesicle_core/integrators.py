@@ -212,7 +212,8 @@ class Inextensible(Integrator):
         local = self.tension.local
         if local is None:
             return {}
-        return {"cg_precond_factorisations": int(local.factorisations), "cg_precond_s": float(local.seconds)}
+        return {"cg_precond_factorisations": int(local.factorisations), "cg_precond_s": float(local.seconds),
+                "cg_precond_shift": float(local.shift)}  # the last build's shift of M_loc (tension.LocalPreconditioner)
 
 
 SCHEMES = {"explicit": Explicit, "projection": Projection, "inextensible": Inextensible}

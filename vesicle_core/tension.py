@@ -215,6 +215,20 @@ def face_D_matrix(geo, topo):
     return sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(nF, 3 * topo.n_vertices))
 
 
+def smallest_eigenvalue(A) -> float:
+    """Smallest eigenvalue of a sparse symmetric matrix (Lanczos, 1e-3 relative; dense below 600 rows). If
+    Lanczos does not converge, Gershgorin's lower bound min_i (a_ii - sum_j!=i |a_ij|): never above lam_min."""
+    import scipy.sparse.linalg as spla
+
+    if A.shape[0] < 600:
+        return float(np.linalg.eigvalsh(A.toarray())[0])
+    try:
+        return float(spla.eigsh(A, k=1, which="SA", tol=1e-3, return_eigenvectors=False)[0])
+    except spla.ArpackNoConvergence:
+        d = A.diagonal()
+        return float(np.min(2 * d - np.asarray(abs(A).sum(axis=1)).ravel()))
+
+
 class LocalPreconditioner:
     """P = dt D M_loc D^T + W / Lambda, LU-factorised, with M_loc the IBM's near-field mobility.
 
@@ -225,13 +239,16 @@ class LocalPreconditioner:
     with r_cut = 3h and 28 with 4h, against 298 for the compliance alone. The truncated mobility stays positive
     definite only for short cut-offs: smallest eigenvalue +0.0065 at 3h but -0.0062 at 4h (N = 128, 2562
     vertices, self-mobility 1.05), and with 4h the CG stalls there; with edge ~ h it is indefinite even at 1.5h.
-    At N = 256 (10242 vertices) the CG with it stalls: use it up to 128^3. A preconditioned residual with
-    r.z <= 0 falls back to the compliance preconditioner for that iteration, and TensionSolver repeats an
-    unconverged solve once with the compliance preconditioner.
+    At N = 256 (10242 vertices) it is indefinite with 3h too (smallest eigenvalue -0.020 against a self-mobility
+    of 2.13), and the CG with it stalled. So each build shifts M_loc by s I, s = max(0, ``margin`` f(0) - lam_min)
+    with lam_min its smallest eigenvalue (Lanczos): P is then positive definite on every grid, and the shift
+    barely touches it where M_loc was definite (N = 128, cold step: 21 iterations unshifted, 21-22 with shifts up
+    to 5% of f(0)). A preconditioned residual with r.z <= 0 falls back to the compliance preconditioner for that
+    iteration, and TensionSolver repeats an unconverged solve once with the compliance preconditioner.
     Construct it before preparing the mobility for a step: measuring the pair table replaces the stencil.
     """
 
-    def __init__(self, mobility, topo, A0, Lambda, r_cut_h=3.0, refresh=10):
+    def __init__(self, mobility, topo, A0, Lambda, r_cut_h=3.0, refresh=10, margin=0.02):
         from .mobility import pair_table
 
         self.topo = topo
@@ -246,6 +263,8 @@ class LocalPreconditioner:
         self._uses = 0
         self.factorisations = 0
         self.seconds = 0.0  # wall time spent building, factorising and applying P (cost accounting)
+        self.margin = float(margin)
+        self.shift = 0.0  # the last build's diagonal shift of M_loc (0 where it was definite with margin)
 
     def _build(self, geo, dt):
         import scipy.sparse as sp
@@ -259,15 +278,18 @@ class LocalPreconditioner:
         for c in range(3):
             pos[fT[c]] = X[:, c].T
         D = face_D_matrix(geo, self.topo)
-        P = dt * (D @ local_mobility_matrix(pos, self.table, r_cut=self.r_cut) @ D.T) + sp.diags(self.W / self.Lambda)
-        # P is symmetric, and positive definite where the truncated mobility is (edge ~ 2h up to 128^3): there a
-        # symmetric fill-reducing ordering with diagonal pivots has ~2/3 of
-        # COLAMD's fill and factorises ~5x faster (0.15 s against 0.70 s at 5120 triangles, each solve 2.0 ms
-        # against 6.6 ms); the factorisation was most of this preconditioner's cost at 128^3
+        M_loc = local_mobility_matrix(pos, self.table, r_cut=self.r_cut)
+        self.shift = max(0.0, self.margin * self.table.self_mobility - smallest_eigenvalue(M_loc))
+        if self.shift > 0:
+            M_loc = M_loc + self.shift * sp.identity(M_loc.shape[0], format="csr")
+        P = dt * (D @ M_loc @ D.T) + sp.diags(self.W / self.Lambda)
+        # P is symmetric positive definite (M_loc shifted where needed): a symmetric fill-reducing ordering with
+        # diagonal pivots has ~2/3 of COLAMD's fill and factorises ~5x faster (0.15 s against 0.70 s at 5120
+        # triangles, each solve 2.0 ms against 6.6 ms); the factorisation was most of this preconditioner's cost
         P = P.tocsc()
         try:
             self._lu = spla.splu(P, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        except RuntimeError:  # a zero pivot: P is not definite (the truncated mobility on fine grids), so pivot
+        except RuntimeError:  # a zero pivot (round-off despite the shift): factorise with partial pivoting
             self._lu = spla.splu(P)
         self._dt = dt
         self._uses = 0
