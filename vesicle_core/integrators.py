@@ -213,7 +213,7 @@ class Inextensible(Integrator):
         if local is None:
             return {}
         return {"cg_precond_factorisations": int(local.factorisations), "cg_precond_s": float(local.seconds),
-                "cg_precond_shift": float(local.shift)}  # the last build's shift of M_loc (tension.LocalPreconditioner)
+                "cg_precond_shift": float(local.shift)}  # this call; the shift: the last build's (LocalPreconditioner)
 
 
 SCHEMES = {"explicit": Explicit, "projection": Projection, "inextensible": Inextensible}

@@ -289,9 +289,8 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "inextensible: CG preconditioner. local adds the IBM's measured "
         "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
-        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 the truncated "
-        "mobility is shifted to stay positive definite (a cold step: 21 iterations against 27; whole runs not "
-        "measured)",
+        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 it saves no "
+        "iterations on warm-started steps and a run with it is slower: keep compliance there",
         choices=("compliance", "local"),
     ),
     Parameter(
