@@ -289,8 +289,9 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "inextensible: CG preconditioner. local adds the IBM's measured "
         "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
-        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 it saves no "
-        "iterations on warm-started steps and a run with it is slower: keep compliance there",
+        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 it halves the "
+        "elongated vesicle's iterations (Delta ~ 1: 2.1x faster through the late stretch) but slows the "
+        "quasi-spherical one (no fewer warm-step iterations): compliance there",
         choices=("compliance", "local"),
     ),
     Parameter(
