@@ -172,17 +172,35 @@ def test_vertex_mean_of_uniform_is_uniform(setup):
     assert np.allclose(v, 3.5)
 
 
-def test_local_preconditioner_same_solution_fewer_iterations():
+def _local_case(n_vertices):
+    """A 1:0.8:1 ellipsoid at N = 32 with its local preconditioner (built before the stencil is prepared, since
+    measuring the pair mobility replaces it) -> X, F, geo, mobility, topology, preconditioner, M_loc."""
+    from vesicle_core.mobility import local_mobility_matrix
     from vesicle_core.tension import LocalPreconditioner
 
-    m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))  # edge ~ 2h at N = 32
+    m = Mm.make_vesicle("quasiuniform", n_vertices=n_vertices, axes=(1.0, 0.8, 1.0))
     s = IBMSolver(m.faces, m.vertices, RunConfig(chi=268.0, N=32, scheme="inextensible"))
     X = s.xp.asarray(m.vertices)
     F, geo = s.forces(X)
     mob = IBMMobility(s.coupler, s.stokes)
-    topo = s.membrane.topo
-    local = LocalPreconditioner(mob, topo, geo.area.copy(), 1.34e7)  # measures the pair mobility: before prepare
+    local = LocalPreconditioner(mob, s.membrane.topo, geo.area.copy(), 1.34e7)
     mob.prepare(X)
+    return X, F, geo, mob, s.membrane.topo, local, local_mobility_matrix(m.vertices, local.table, r_cut=local.r_cut)
+
+
+def _assembled_P(M_loc, geo, topo, dt, shift=0.0):
+    """P = dt D (M_loc + shift I) D^T + W / Lambda as a dense matrix."""
+    import scipy.sparse as sp
+
+    from vesicle_core.tension import face_D_matrix
+
+    D = face_D_matrix(geo, topo)
+    M = M_loc + shift * sp.identity(M_loc.shape[0])
+    return (dt * (D @ M @ D.T) + sp.diags(geo.area / 1.34e7)).toarray()
+
+
+def test_local_preconditioner_same_solution_fewer_iterations():
+    X, F, geo, mob, topo, local, _ = _local_case(162)  # edge ~ 2h at N = 32
     u_inf = 268.0 * np.c_[-X[:, 0], X[:, 1], 0 * X[:, 2]]
     zero = np.zeros(geo.area.shape[0])
     out = {}
@@ -198,22 +216,11 @@ def test_local_preconditioner_same_solution_fewer_iterations():
 def test_local_preconditioner_factorisation_solves_its_matrix(monkeypatch):
     """The symmetric-mode LU (no pivoting, a symmetric ordering) applies P^{-1} exactly: checked against a dense
     solve of the assembled P = dt D M_loc D^T + W / Lambda."""
-    import scipy.sparse as sp
-
-    from vesicle_core.mobility import local_mobility_matrix
-    from vesicle_core.tension import LocalPreconditioner, face_D_matrix
-
-    m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    s = IBMSolver(m.faces, m.vertices, RunConfig(chi=268.0, N=32, scheme="inextensible"))
-    _, geo = s.forces(s.xp.asarray(m.vertices))
-    mob = IBMMobility(s.coupler, s.stokes)
-    local = LocalPreconditioner(mob, s.membrane.topo, geo.area.copy(), 1.34e7)
+    _, _, geo, _, topo, local, M_loc = _local_case(162)
     r = np.random.default_rng(1).standard_normal(geo.area.shape[0])
     z = local(r, geo, 3.7e-5)
-    D = face_D_matrix(geo, s.membrane.topo)
-    P = 3.7e-5 * (D @ local_mobility_matrix(m.vertices, local.table, r_cut=local.r_cut) @ D.T) \
-        + sp.diags(geo.area / 1.34e7)
-    z_dense = np.linalg.solve(P.toarray(), r)
+    assert local.shift == 0.0  # the premise: M_loc is definite with margin on this mesh, so P is the plain one
+    z_dense = np.linalg.solve(_assembled_P(M_loc, geo, topo, 3.7e-5), r)
     assert np.abs(z - z_dense).max() <= 1e-8 * np.abs(z_dense).max()
     assert local.factorisations == 1 and local.seconds > 0
 
@@ -274,28 +281,13 @@ def test_smallest_eigenvalue_lanczos_and_its_safe_bound(monkeypatch):
 def test_local_preconditioner_shifts_an_indefinite_local_mobility():
     """With edges ~ h (642 vertices at N = 32) the truncated pair mobility within 3h is indefinite; the build shifts
     it so P is positive definite, and the CG then reaches the compliance-preconditioned solution."""
-    import scipy.sparse as sp
-
-    from vesicle_core.mobility import local_mobility_matrix
-    from vesicle_core.tension import LocalPreconditioner, face_D_matrix
-
-    m = Mm.make_vesicle("quasiuniform", n_vertices=642, axes=(1.0, 0.8, 1.0))
-    s = IBMSolver(m.faces, m.vertices, RunConfig(chi=268.0, N=32, scheme="inextensible"))
-    X = s.xp.asarray(m.vertices)
-    F, geo = s.forces(X)
-    mob = IBMMobility(s.coupler, s.stokes)
-    topo = s.membrane.topo
-    local = LocalPreconditioner(mob, topo, geo.area.copy(), 1.34e7)
-    M_loc = local_mobility_matrix(m.vertices, local.table, r_cut=local.r_cut)
+    X, F, geo, mob, topo, local, M_loc = _local_case(642)
     lam = np.linalg.eigvalsh(M_loc.toarray())[0]
     assert lam < 0  # the premise: truncation made it indefinite
-    mob.prepare(X)
     dt = 3.7e-5
     local(np.ones(geo.area.shape[0]), geo, dt)
     assert local.shift == pytest.approx(local.margin * local.table.self_mobility - lam, rel=1e-5)
-    D = face_D_matrix(geo, topo)
-    P = dt * (D @ (M_loc + local.shift * sp.identity(M_loc.shape[0])) @ D.T) + sp.diags(geo.area / 1.34e7)
-    assert np.linalg.eigvalsh(P.toarray())[0] > 0
+    assert np.linalg.eigvalsh(_assembled_P(M_loc, geo, topo, dt, local.shift))[0] > 0
     u_inf = 268.0 * np.c_[-X[:, 0], X[:, 1], 0 * X[:, 2]]
     zero = np.zeros(geo.area.shape[0])
     out = []
