@@ -4,7 +4,8 @@ Run by hand:
     python benchmarks/bench_schemes.py [--N 64] [--n-vertices 642] [--chi 267.8] [--schemes explicit inextensible]
         [--lambda-explicit 1e7] [--stretch 1] [--t-end 1] [--dtype float64] [--out DIR]
 
-A scheme may carry the inextensible scheme's CG preconditioner after a slash: `inextensible/local`.
+A scheme may carry the inextensible scheme's CG preconditioner after a slash, and any run parameters after plus
+signs: `inextensible/local+tension_slip=0.03`.
 
 * explicit: the paper's method, the stiff area penalty alone (Lambda = 1.5e4 chi by default; --lambda-explicit
   sets it, e.g. 1e7 for a strain <= 0.1% at chi = 268);
@@ -29,6 +30,7 @@ import time
 
 import numpy as np
 import xarray as xr
+import yaml
 
 from vesicle_core import mesh as M
 from vesicle_core.simulate import RunConfig, run
@@ -63,10 +65,14 @@ def inextensibility(ds):
 
 
 def one(label, mesh, a, outdir):
-    scheme, _, precond = label.partition("/")
+    head, *sets = label.split("+")
+    scheme, _, precond = head.partition("/")
     kw = {"Lambda": a.lambda_explicit} if scheme == "explicit" and a.lambda_explicit else {}
     if precond:
         kw["cg_precond"] = precond
+    for kv in sets:  # run parameters after a plus: inextensible+tension_slip=0.03
+        k, _, v = kv.partition("=")
+        kw[k] = yaml.safe_load(v)
     cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
                     fft_workers=a.fft_workers, dtype=a.dtype, **kw)
     t = time.perf_counter()
@@ -106,7 +112,7 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         base = a.out or d
         for scheme in a.schemes:
-            r, s = one(scheme, mesh, a, os.path.join(base, scheme))
+            r, s = one(scheme, mesh, a, os.path.join(base, scheme.replace("/", "_")))
             rows.append(r)
             specs.append(s)
             print(f"{scheme}: done in {r['wall_s']:.0f} s", flush=True)
