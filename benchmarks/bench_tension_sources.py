@@ -3,7 +3,7 @@
 Run by hand:
     python benchmarks/bench_tension_sources.py sources TRAJECTORY.nc [--times -0.5 0 0.1 0.2 0.3 0.5]
     python benchmarks/bench_tension_sources.py variants [--N 64] [--n-vertices 642] [--cells face vertex]
-        [--bending full normal]
+        [--bending full normal] [--free 0 35 100]
 
 ``sources``: the tension solve is linear in its right-hand side dt D (M F + u_inf) + (A - A^0), so at frames of a
 finished inextensible run it is solved (cold, cg_tol 1e-9) for each part alone: the bending and volume forces F,
@@ -16,6 +16,9 @@ vertex dual cell, and with the full discrete bending force or its normal project
 has no tangential part, so a tangential mesh-scale force would be a discretisation artefact). Reported: the
 checkerboard measure over 0 <= gamma_dot t <= 0.5 on the solved tension at every step (worst, median, fraction of
 steps above 0.3 of the rms; median over the standard deviation), triangle and dual-cell strains, l_*.
+``--free k`` leaves the k weakest patterns of D D^T (the triangle-area patterns that vertex motion changes least,
+where the checkerboard lives: benchmarks/tension_modes.py) out of the triangle constraint, to measure what not
+holding their areas costs.
 Quote timings with what else ran on the machine.
 """
 
