@@ -41,6 +41,40 @@ def setup():
     return m, s, X, F, geo, mob
 
 
+def _flat_lattice(n=8, a=0.1):
+    """A flat patch of the regular triangular lattice: vertices, faces, and +1 / -1 on up / down triangles."""
+    idx = {(i, j): i + n * j for j in range(n) for i in range(n)}
+    X = a * np.array([(i + 0.5 * j, j * np.sqrt(3) / 2, 0.0) for j in range(n) for i in range(n)])
+    faces, sign = [], []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            p, q, r, s = idx[(i, j)], idx[(i + 1, j)], idx[(i, j + 1)], idx[(i + 1, j + 1)]
+            faces += [(p, q, r), (q, s, r)]
+            sign += [1.0, -1.0]
+    interior = [idx[(i, j)] for j in range(1, n - 1) for i in range(1, n - 1)]
+    return X, np.array(faces), np.array(sign), interior
+
+
+def test_tension_force_is_marangoni_and_the_checkerboard_is_force_free():
+    """-D^T sigma of a linear tension is its gradient times the dual-cell area (the Marangoni force, pulling
+    towards higher tension); a tension alternating between up and down triangles exerts no force at all on the
+    interior of a regular lattice (each set of alternate hexagon edges sums to zero). That null mode is why the
+    solved tension carries a mesh-scale checkerboard that the vertex motion cannot hold down (docs/solver.md)."""
+    X, faces, sign, interior = _flat_lattice()
+    topo = B.Topology(faces, len(X))
+    geo = B.geometry(X, topo)
+    grad = np.array([3.0, -2.0, 0.0])
+    sigma = X[faces].mean(axis=1) @ grad
+    force = -face_DT(sigma, geo, topo)[interior]
+    assert np.allclose(force, dual_areas(geo, topo)[interior, None] * grad, rtol=0, atol=1e-14)
+    uniform = np.abs(face_DT(np.ones(len(faces)), geo, topo)).max()  # boundary vertices: the patch's edge pull
+    assert np.abs(face_DT(sign, geo, topo)[interior]).max() <= 1e-14 * uniform
+    # an irregular lattice breaks the cancellation only to first order in its irregularity
+    d = np.random.default_rng(0).standard_normal(X.shape) * [1, 1, 0]
+    f1, f2 = (np.linalg.norm(face_DT(sign, B.geometry(X + e * d, topo), topo)[interior]) for e in (1e-5, 2e-5))
+    assert 0 < f1 and f2 / f1 == pytest.approx(2.0, rel=1e-3)
+
+
 @pytest.mark.parametrize("cells", ["face", "vertex"])
 def test_operator_symmetric_and_positive(setup, cells):
     _, s, _, _, geo, mob = setup
