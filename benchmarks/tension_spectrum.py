@@ -11,8 +11,8 @@ edge) and reports
 - the shape's l_peak (the most excited l >= 3 of the frame's Delta_l);
 - the share of the tension's variance at l = 2 (the flow's imprint), at 3 <= l <= L/2 (the wrinkles' band), at
   L/2 < l <= L, and above L (what the projection cannot hold: the mesh scale);
-- the checkerboard measure of the raw tension and of its l <= L/2 part (resynthesised at the vertices), both over
-  the rms of the raw vertex-averaged tension.
+- the checkerboard measure of the raw tension and of its l <= L/2 part (harmonics.resolved_field, at the
+  vertices), both over the rms of the raw vertex-averaged tension.
 A tension that varies with the wrinkles has its variance near l_peak; a checkerboard has it above L.
 """
 
@@ -65,11 +65,7 @@ def analyse(path, t_min, t_max, l_max):
         g = B.geometry(v, topo)
         tv = vertex_mean(s, g, topo)
         rms = np.sqrt(np.mean(tv**2))
-        cl = c.copy()
-        cl[half + 1:] = 0
-        rel = v - q.center
-        r = np.linalg.norm(rel, axis=1)
-        low = H.synthesize(cl, np.arccos(np.clip(rel[:, 2] / r, -1, 1)), np.arctan2(rel[:, 1], rel[:, 0]))
+        low = H.resolved_field(v, faces, s, half)
         nb = lambda x: np.sqrt(np.mean((x[E[:, 0]] - x[E[:, 1]]) ** 2))  # noqa: E731
         rows.append((t[k], s.mean(), np.sqrt(var), l_peak, *shares, nb(tv) / rms, nb(low) / rms))
         print(f"{t[k]:6.2f} {s.mean():8.1f} {np.sqrt(var):7.1f} {l_peak:6d} " + " ".join(f"{x:5.2f}" for x in shares)
