@@ -56,7 +56,9 @@ def neighbour_rms(tv, E):
 
 
 # --------------------------------------------------------------------------- sources
-def sources(path, times):
+def load_case(path):
+    """A finished trajectory and the float64 solver of its case: (ds, faces, X (frames, V, 3), cfg, solver,
+    mobility); the solver's reference shape is the first frame."""
     ds = xr.open_dataset(path).load()
     faces = ds.face_node_connectivity.values
     X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
@@ -64,7 +66,11 @@ def sources(path, times):
     cfg = RunConfig(chi=float(a["chi"]), N=int(a["N"]), L=float(a["L"]), scheme="inextensible", dtype="float64",
                     kernel=str(a.get("kernel", "peskin4")))
     sol = IBMSolver(faces, X[0], cfg)
-    mob = IBMMobility(sol.coupler, sol.stokes, sol._grid_buf)
+    return ds, faces, X, cfg, sol, IBMMobility(sol.coupler, sol.stokes, sol._grid_buf)
+
+
+def sources(path, times):
+    ds, faces, X, cfg, sol, mob = load_case(path)
     mem = sol.membrane
     ts = TensionSolver(mob, mem.topo, mem.ref.face_area, cfg.Lambda_eff, tol=1e-9, maxiter=5000)
     E = edges(faces)

@@ -28,22 +28,18 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
+import sys
 
 import numpy as np
 import scipy.sparse as sp
-import xarray as xr
 
 from vesicle_core.flow import background_velocity
-from vesicle_core.mobility import IBMMobility, IBMSolver
-from vesicle_core.run_config import RunConfig
 from vesicle_core.tension import TensionSolver, face_D_matrix, face_DT, vertex_mean
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_tension_sources import edges, load_case  # noqa: E402
+
 BANDS = [(0, 0.3), (0.3, 1), (1, 3), (3, 10), (10, 100), (100, np.inf)]
-
-
-def edges(faces):
-    f = np.asarray(faces)
-    return np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
 
 
 def triangle_laplacian(faces):
@@ -70,14 +66,7 @@ def vertex_normals(X, faces):
 
 
 def analyse(path, time):
-    ds = xr.open_dataset(path).load()
-    faces = ds.face_node_connectivity.values
-    X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
-    a = ds.attrs
-    cfg = RunConfig(chi=float(a["chi"]), N=int(a["N"]), L=float(a["L"]), scheme="inextensible", dtype="float64",
-                    kernel=str(a.get("kernel", "peskin4")))
-    sol = IBMSolver(faces, X[0], cfg)
-    mob = IBMMobility(sol.coupler, sol.stokes, sol._grid_buf)
+    ds, faces, X, cfg, sol, mob = load_case(path)
     topo = sol.membrane.topo
     W = sol.membrane.ref.face_area
     k = int(np.argmin(np.abs(ds.time.values - time)))

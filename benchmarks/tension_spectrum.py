@@ -21,6 +21,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
+import sys
 
 import numpy as np
 import xarray as xr
@@ -29,10 +30,8 @@ from vesicle_core import harmonics as H
 from vesicle_core import membrane as B
 from vesicle_core.tension import vertex_mean
 
-
-def edges(faces):
-    f = np.asarray(faces)
-    return np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_tension_sources import edges  # noqa: E402
 
 
 def analyse(path, t_min, t_max, l_max):
