@@ -5,7 +5,7 @@ Run by hand:
         [--lambda-explicit 1e7] [--stretch 1] [--t-end 1] [--dtype float64] [--out DIR]
 
 A scheme may carry the inextensible scheme's CG preconditioner after a slash, and any run parameters after plus
-signs: `inextensible/local+tension_slip=0.03`.
+signs: `inextensible/local+cg_tol=1e-6`.
 
 * explicit: the paper's method, the stiff area penalty alone (Lambda = 1.5e4 chi by default; --lambda-explicit
   sets it, e.g. 1e7 for a strain <= 0.1% at chi = 268);
@@ -70,7 +70,7 @@ def one(label, mesh, a, outdir):
     kw = {"Lambda": a.lambda_explicit} if scheme == "explicit" and a.lambda_explicit else {}
     if precond:
         kw["cg_precond"] = precond
-    for kv in sets:  # run parameters after a plus: inextensible+tension_slip=0.03
+    for kv in sets:  # run parameters after a plus: inextensible+cg_tol=1e-6
         k, _, v = kv.partition("=")
         kw[k] = yaml.safe_load(v)
     cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
