@@ -72,7 +72,12 @@ def one(label, mesh, a, outdir):
         kw["cg_precond"] = precond
     for kv in sets:  # run parameters after a plus: inextensible+cg_tol=1e-6
         k, _, v = kv.partition("=")
-        kw[k] = yaml.safe_load(v)
+        v = yaml.safe_load(v)
+        try:  # PyYAML reads 1e-6 (no dot) as a string
+            v = float(v) if isinstance(v, str) else v
+        except ValueError:
+            pass
+        kw[k] = v
     cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
                     fft_workers=a.fft_workers, dtype=a.dtype, **kw)
     t = time.perf_counter()
