@@ -33,6 +33,7 @@ import sys
 import numpy as np
 import scipy.sparse as sp
 
+from vesicle_core import harmonics as H
 from vesicle_core.flow import background_velocity
 from vesicle_core.tension import TensionSolver, face_D_matrix, face_DT, vertex_mean
 
@@ -54,15 +55,6 @@ def triangle_laplacian(faces):
     adj = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     adj = (adj + adj.T).tocsr()
     return sp.diags(np.asarray(adj.sum(axis=1)).ravel()) - adj
-
-
-def vertex_normals(X, faces):
-    f = np.asarray(faces)
-    a = 0.5 * np.cross(X[f[:, 1]] - X[f[:, 0]], X[f[:, 2]] - X[f[:, 0]])
-    n = np.zeros_like(X)
-    for c in range(3):
-        np.add.at(n, f[:, c], a)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def analyse(path, time):
@@ -94,7 +86,7 @@ def analyse(path, time):
     # responses to a tangential slip: |T D^T q|^2 and the vertex-graph high-pass version
     Dm = face_D_matrix(geo, topo)
     V = Xk.shape[0]
-    nv = vertex_normals(Xk, faces)
+    nv = H.vertex_normals(Xk, faces)
     Fq = (Dm.T @ (Wh[:, None] * Q)).reshape(V, 3, n)
     Fq -= nv[:, :, None] * np.einsum("vc,vcn->vn", nv, Fq)[:, None, :]
     tang = np.einsum("vcn,vcn->n", Fq, Fq)
