@@ -60,13 +60,15 @@ def test_cupy_backend_is_selected_and_takes_gpu_branches(fake_cupy):
     assert be.asnumpy(np.ones(2)).sum() == 2 and calls["asnumpy"] == 1
 
 
-@pytest.mark.parametrize("scheme", ["projection", "inextensible"])
-def test_a_run_on_the_gpu_path_matches_numpy(fake_cupy, tmp_path, scheme):
+@pytest.mark.parametrize("scheme,coupling", [("projection", "kernel"), ("inextensible", "kernel"),
+                                             ("projection", "sharp")])
+def test_a_run_on_the_gpu_path_matches_numpy(fake_cupy, tmp_path, scheme, coupling):
     from vesicle_core.simulate import RunConfig, run
 
     _, calls = fake_cupy
     m = M.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    base = dict(chi=20.0, N=16, stretch=0.1, t_end=0.05, output_every=0.05, scheme=scheme, dt=2.5e-4)
+    base = dict(chi=20.0, N=16, stretch=0.1, t_end=0.05, output_every=0.05, scheme=scheme, dt=2.5e-4,
+                coupling=coupling)
     if scheme == "inextensible":  # a CG converged to round-off, so that only round-off can differ
         base.update(cg_tol=1e-10, cg_maxiter=2000)
     out = {}

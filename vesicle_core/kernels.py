@@ -16,6 +16,7 @@ operations are exact adjoints. Three kernels (``KERNELS``):
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -147,3 +148,62 @@ def stencil(X, h, N, origin=0.0, xp=None, kernel=DEFAULT_KERNEL):
     w = xp.stack([a - q, a + q, b + q, b - q], axis=-1) * 0.125
     j = base[..., None] + xp.arange(4, dtype=xp.int64)  # (M, 3, 4)
     return j % N, w
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Window deconvolution (the sharpened coupling, ``coupling: sharp``)
+#
+# Spreading and interpolating with the same kernel filter the Stokes velocity twice: a marker sees
+# G_hat(k) phi_hat(k)^2 F, with phi_hat the continuous Fourier transform of the 3D kernel (the tensor product of the
+# 1D one). Spectral Ewald (Lindbo & Tornberg 2010) and positively split Ewald (Fiore et al. 2017) undo their window in
+# Fourier space; here the same division is applied to the IB kernel, floored so that the near-zero tail of
+# phi_hat^2 at the grid's Nyquist modes is not amplified without bound:
+#
+#     W(k) = 1 / max(phi_hat(k h)^2, floor),    phi_hat(k h) = prod_j phi_hat_1(k_j h)
+#
+# W is real, even and positive, so M = J L^{-1} xi W S stays symmetric positive semi-definite.
+
+_HALF_WIDTH = {"peskin4": 2.0, "roma3": 1.5, "bao6": 3.0}  # support of phi(r) is |r| < half width (in h)
+
+
+def _gauss_nodes(half_width, n=24):
+    """Gauss-Legendre nodes and weights on [0, half_width], n per half cell: the kernels are smooth between
+    multiples of 1/2 (their pieces join at integers or half integers), so the rule is exact to round-off."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    edges = np.arange(0.0, half_width + 0.25, 0.5)
+    a, b = edges[:-1, None], edges[1:, None]
+    return (0.5 * (b - a) * x + 0.5 * (b + a)).ravel(), (0.5 * (b - a) * w).ravel()
+
+
+def phi_hat(theta, kernel=DEFAULT_KERNEL):
+    """Continuous Fourier transform of the 1D kernel, int phi(r) exp(-i theta r) dr, at theta = k h (radians per
+    grid spacing). Real and even (the kernels are even); phi_hat(0) = 1 (the kernels sum to one). float64, host."""
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {tuple(KERNELS)}, got {kernel!r}")
+    r, w = _gauss_nodes(_HALF_WIDTH[kernel])
+    vals = phi_kernel(r, kernel, np) * w
+    theta = np.asarray(theta, dtype=np.float64)
+    return 2.0 * np.cos(theta[..., None] * r) @ vals
+
+
+@functools.cache
+def window_symbol_1d(N, kernel=DEFAULT_KERNEL):
+    """phi_hat(2 pi m / N) for the FFT wave-number indices m = 0..N-1 (read-only float64; computed once per
+    kernel and N)."""
+    m = np.arange(N)
+    out = phi_hat(2.0 * np.pi * np.minimum(m, N - m) / N, kernel)
+    out.setflags(write=False)
+    return out
+
+
+def sharpening_symbol(N, kernel=DEFAULT_KERNEL, floor=0.01):
+    """W = 1 / max(phi_hat^2, floor) on the real-FFT half spectrum (N, N, N // 2 + 1), float64 on the host.
+
+    The factor the sharpened coupling applies to the spread force's spectrum (see above): 1 at k = 0, at most
+    1 / floor. ``floor`` in (0, 1]; 1 gives W = 1, today's coupling."""
+    if not 0.0 < floor <= 1.0:
+        raise ValueError(f"sharp_floor must be in (0, 1], got {floor!r}")
+    w1 = window_symbol_1d(N, kernel)
+    wz = w1[: N // 2 + 1]
+    p2 = (w1[:, None, None] * w1[None, :, None] * wz[None, None, :]) ** 2
+    return 1.0 / np.maximum(p2, floor)

@@ -63,6 +63,15 @@ class IBMMobility:
         return self.coupler.interpolate(u)
 
 
+def coupling_filter(cfg: RunConfig):
+    """The Stokes solver's force filter for ``cfg.coupling``: None (kernel) or the sharpening symbol (sharp)."""
+    if cfg.coupling == "kernel":
+        return None
+    from .kernels import sharpening_symbol
+
+    return sharpening_symbol(cfg.N, cfg.kernel, cfg.sharp_floor)
+
+
 class IBMSolver:
     """Membrane forces + spreading + periodic Stokes + interpolation on one array module.
 
@@ -80,7 +89,7 @@ class IBMSolver:
         xp = self.be.xp
         self.xp = xp
         self.grid = Grid(cfg.N, cfg.L)
-        self.stokes = StokesSolver(self.grid, self.be, rho_bar=cfg.rho_bar)
+        self.stokes = StokesSolver(self.grid, self.be, rho_bar=cfg.rho_bar, force_filter=coupling_filter(cfg))
         # reused stencil and grid buffers (no page faults per step)
         self.coupler = Coupler(self.grid, self.be, kernel=cfg.kernel)
         self._grid_buf = self.be.empty(self.grid.field_shape)

@@ -108,6 +108,8 @@ _SCHEMES = ("explicit", "projection", "inextensible")
 # checkpoint took 4.8 ms to write (median of 5, two 256^3 runs on the machine).
 CHECKPOINT_WALL_S = 600.0
 _KERNELS = tuple(KERNELS)
+# the sharp coupling's floor, chosen from the resolution table alone (docs/solver.md, "Sharpened coupling")
+SHARP_FLOOR = 0.01
 
 #: parameters of one IBM run (``vesicle run``, ``RunConfig``), in solver units (R, kappa, tau = mu R^3 / kappa)
 RUN_PARAMETERS: tuple[Parameter, ...] = (
@@ -162,6 +164,26 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "regularised delta: Peskin's 4-point (eq. 27), Roma-Peskin-Berger 3-point, "
         "Bao-Kaye-Peskin 6-point (kernels.py)",
         choices=_KERNELS,
+    ),
+    Parameter(
+        "coupling",
+        "kernel",
+        "str",
+        "fluid-membrane coupling. kernel: spread and interpolate with the kernel (eqs. 16, 28; the paper's); "
+        "sharp: also divide the spread force's spectrum by the kernel's squared Fourier transform, floored at "
+        "sharp_floor (window deconvolution: resolves ~2x higher l per grid node; needs a mesh edge of ~h, "
+        "docs/solver.md)",
+        choices=("kernel", "sharp"),
+    ),
+    Parameter(
+        "sharp_floor",
+        SHARP_FLOOR,
+        "float",
+        "sharp coupling: floor on the kernel's squared Fourier transform (the largest amplification is "
+        "1/sharp_floor); chosen by the resolution table (docs/solver.md)",
+        "",
+        1e-4,
+        1.0,
     ),
     Parameter(
         "scheme",

@@ -69,11 +69,13 @@ class RateResult:
 
 
 def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3, family="quasiuniform",
-              seed=0, backend="numpy", Lambda=1e5, kernel=DEFAULT_KERNEL) -> RateResult:
+              seed=0, backend="numpy", Lambda=1e5, kernel=DEFAULT_KERNEL, coupling="kernel",
+              sharp_floor=None) -> RateResult:
     """IBM relaxation rate of r = 1 + eps Y_l0 on an N^3 grid of edge L (one Stokes solve, or a tension solve).
 
     The mesh axis is tilted away from the grid axes (a fixed rotation), so the mode does not line up with
-    the grid. ``sigma0``: a uniform tension added as the force sigma0 H (both membranes).
+    the grid. ``sigma0``: a uniform tension added as the force sigma0 H (both membranes). ``coupling`` and
+    ``sharp_floor``: the run parameters of those names (None: the parameter's default).
     """
     from . import membrane as B
     from .mobility import IBMSolver
@@ -85,8 +87,9 @@ def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3
     n = v @ rot.T  # mesh directions in the grid frame
     cos_t = v[:, 2]  # the mode's axis is the mesh's z axis
     X = n * (1.0 + eps * _y_l0(l, cos_t))[:, None]
+    extra = {} if sharp_floor is None else {"sharp_floor": sharp_floor}
     cfg = RunConfig(chi=0.0, stretch=0.0, N=N, L=L, Lambda=0.0, K_volume=0.0, scheme="projection", backend=backend,
-                    kernel=kernel)
+                    kernel=kernel, coupling=coupling, **extra)
     solver = IBMSolver(f, X, cfg)
     xp = solver.xp
     Xd = xp.asarray(X)
@@ -145,24 +148,50 @@ def l_res(ratios: dict, tol=0.05) -> int:
     return best
 
 
-def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.05, box_factor=None,
-                     kernel=DEFAULT_KERNEL):
-    """Rate ratios IBM/theory per (N, l) and l_res per N; ``box_factor[l]`` divides out the periodic-box effect.
+def box_factor_l2(N, n_vertices, L=5.0, **kw) -> float:
+    """r(L) / r(inf) of mode l = 2, from boxes L and ~7 R at the same h (r = r_inf - c / L^3): the periodic images slow
+    l = 2 by ~5% at L = 5 R, and modes l >= 3 move by < 0.1% (docs/solver.md, "Kernels and resolution")."""
+    h = L / N
+    N7 = 2 * round(7.0 / h / 2)
+    L7 = N7 * h
+    r5 = mode_rate(2, N, n_vertices, L=L, **kw).ratio
+    r7 = mode_rate(2, N7, n_vertices, L=L7, **kw).ratio
+    c = (r7 - r5) / (1 / L**3 - 1 / L7**3)
+    return r5 / (r7 + c / L7**3)
 
-    ``n_vertices_of(N)``: the mesh for each grid (default: edge ~ 2h, the project's rule).
+
+def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.05, box_factor=None,
+                     kernel=DEFAULT_KERNEL, coupling="kernel", sharp_floor=None, edge=2.0, box_correct=False,
+                     lh_max=2.0, progress=None):
+    """Rate ratios IBM/theory per (N, l) and l_res per N, for one kernel and coupling.
+
+    ``n_vertices_of(N)``: the mesh for each grid (default: mean edge ``edge`` h; 2h is the project's rule for the
+    kernel coupling, h the sharp coupling's). ``box_factor[l]`` divides out the periodic-box effect; or
+    ``box_correct=True`` measures it for l = 2 (:func:`box_factor_l2`, two more solves per grid). Modes with
+    l h > ``lh_max`` are skipped (far past any kernel's resolution). ``progress``: called with a line per grid.
     """
+    kw = {"kernel": kernel, "coupling": coupling, "sharp_floor": sharp_floor}
     out = {}
     for N in Ns:
-        nv = n_vertices_of(N) if n_vertices_of else default_vertices(N, L)
+        nv = n_vertices_of(N) if n_vertices_of else default_vertices(N, L, edge)
+        bf = dict(box_factor or {})
+        if box_correct and 2 in ls:
+            bf[2] = box_factor_l2(N, nv, L, **kw)
         ratios = {}
         for l in ls:
-            r = mode_rate(l, N, nv, L=L, membrane=membrane, kernel=kernel).ratio
-            ratios[l] = r / (box_factor[l] if box_factor else 1.0)
-        out[N] = {"n_vertices": nv, "ratios": ratios, "l_res": l_res(ratios, tol)}
+            if l * L / N > lh_max:
+                break
+            r = mode_rate(l, N, nv, L=L, membrane=membrane, **kw).ratio
+            ratios[l] = r / bf.get(l, 1.0)
+        out[N] = {"n_vertices": nv, "ratios": ratios, "l_res": l_res(ratios, tol), "box_factor": bf}
+        if progress:
+            progress(f"N = {N}, {nv} vertices: l_res = {out[N]['l_res']}, "
+                     + " ".join(f"{l}:{r:.3f}" for l, r in ratios.items()))
     return out
 
 
-def default_vertices(N, L=5.0):
-    """Vertex count whose mean edge is ~2h (h = L/N) on the unit sphere: ~ 4 pi / (0.433 (2h)^2 x 2)."""
+def default_vertices(N, L=5.0, edge=2.0):
+    """Vertex count whose mean edge is ~``edge`` h (h = L/N; the project's rule is 2h, the sharp coupling's h) on the
+    unit sphere: ~ 4 pi / (0.433 (edge h)^2 x 2)."""
     h = L / N
-    return round(4.0 * math.pi / (math.sqrt(3) / 4 * (2 * h) ** 2) / 2.0 + 2)
+    return round(4.0 * math.pi / (math.sqrt(3) / 4 * (edge * h) ** 2) / 2.0 + 2)

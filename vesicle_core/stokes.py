@@ -52,6 +52,11 @@ same order, so the velocities are identical bit for bit (tested). Measured by be
 takes 0.60x (128^3, 5.1 against 12.7 ms) and 0.47x (256^3, 81 against 145 ms) as long, a whole steady solve
 0.95x (67 against 68 ms) and 0.91x (670 against 750 ms). ``fused=False`` keeps the NumPy passes.
 
+Sharpened coupling. ``force_filter`` W(k) multiplies the force's spectrum before the projection:
+u_hat = xi W f_hat / lam (steady) and the same W f_hat in eq. (23). With W = 1 / max(phi_hat^2, floor) this undoes the
+kernel's double smoothing up to the floor (:mod:`vesicle_core.kernels`, "Window deconvolution"). W is real, even and
+positive and commutes with xi / lam, so the coupled mobility stays symmetric positive semi-definite.
+
 Spectral layouts. CPU (NumPy): the interleaved real view above, in slabs of ~1 MiB. GPU (CuPy): the
 complex spectrum itself, symbols once per mode and the whole grid as one chunk (one kernel launch per
 operation). ``StokesSolver(..., interleave=None)`` picks by backend; ``interleave=False`` forces the GPU
@@ -161,13 +166,16 @@ class StokesSolver:
     backend : Backend (NumPy or CuPy; ``backend.dtype`` float32 switches to float32/complex64
         fields and symbols, see :attr:`single_precision`).
     rho_bar : dimensionless fluid density >= 0; 0 = steady Stokes.
+    force_filter : None, or a real, even, positive symbol W (N, N, N // 2 + 1) (float64, host) that multiplies the
+        force's spectrum: the sharpened coupling's window deconvolution (module docstring, "Sharpened coupling";
+        :func:`~vesicle_core.kernels.sharpening_symbol`). Folded into the symbols once: a solve costs the same.
     interleave : spectral layout of the in-place kernels (module docstring, "Spectral layouts").
         None (default): automatic, the interleaved real view in ~1 MiB slabs on NumPy and the complex
         layout in one chunk on CuPy. False: the complex, single-chunk GPU layout on any backend (lets the
         CPU tests run the GPU code path). True: the interleaved layout on any backend.
     """
 
-    def __init__(self, grid, backend, rho_bar=0.0, interleave=None, fused=None):
+    def __init__(self, grid, backend, rho_bar=0.0, interleave=None, fused=None, force_filter=None):
         if interleave is not None and not isinstance(interleave, (bool, np.bool_)):
             raise ConfigError(f"interleave must be None (automatic), True or False, got {interleave!r}")
         if fused is not None and not isinstance(fused, (bool, np.bool_)):
@@ -192,6 +200,16 @@ class StokesSolver:
         self._inv_lam = 1.0 / lam  # float64 host copies for building the per-dt symbols
         self._inv_lam[0, 0, 0] = 0.0
         lam[0, 0, 0] = 0.0
+        self.filtered = force_filter is not None
+        if self.filtered:
+            W = np.asarray(force_filter, dtype=np.float64)
+            if W.shape != lam.shape:
+                raise ConfigError(f"force_filter must have shape {lam.shape}, got {W.shape}")
+            if not np.all(np.isfinite(W)) or np.any(W <= 0.0):
+                raise ConfigError("force_filter must be finite and positive (a real, even window symbol)")
+            # every symbol that acts on the force carries 1/lam (steady A, Bm; unsteady Q2, Q3); the decay E and
+            # the carried state's Q1 do not: folding W here filters the force and nothing else
+            self._inv_lam *= W
         self._lam = lam
         with np.errstate(divide="ignore"):
             self._ginv = np.where(g2 > 0.0, 1.0 / np.where(g2 > 0.0, g2, 1.0), 0.0)
