@@ -1,6 +1,6 @@
 """The tension operator of the inextensible scheme: its conditioning and the tension stability limit.
 
-    python benchmarks/bench_tension.py [--N 64] [--n-vertices 642] [--chi 267.8]
+    python benchmarks/bench_tension.py [--N 64] [--n-vertices 642] [--chi 267.8] [--coupling sharp] [--stability-only]
 
 1. Tension stability: the largest eigenvalue |lam| of the linearised membrane velocity under a uniform tension
    sigma (bending + sigma H, power iteration), for sigma = 0, 2000, 8000. |lam| h / sigma is the constant behind
@@ -37,9 +37,9 @@ def _with_uniform_tension(forces, sigma):
     return f
 
 
-def stability(mesh, N, chi):
+def stability(mesh, N, chi, coupling="kernel"):
     for sigma in (0.0, 2000.0, 8000.0):
-        s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible"))
+        s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible", coupling=coupling))
         s.membrane.forces = _with_uniform_tension(s.membrane.forces, sigma)
         _, lam = power_dt(s, s.xp.asarray(mesh.vertices), iters=60)
         ratio = f"{lam * s.grid.h / sigma:.3f}" if sigma else "-"
@@ -75,9 +75,13 @@ def main():
     ap.add_argument("--N", type=int, default=64)
     ap.add_argument("--n-vertices", type=int, default=642)
     ap.add_argument("--chi", type=float, default=267.8)
+    ap.add_argument("--coupling", default="kernel", choices=("kernel", "sharp"))
+    ap.add_argument("--stability-only", action="store_true", help="part 1 alone")
     a = ap.parse_args()
     mesh = M.make_vesicle("quasiuniform", n_vertices=a.n_vertices, axes=(1.0, 0.8, 1.0))
-    stability(mesh, a.N, a.chi)
+    stability(mesh, a.N, a.chi, a.coupling)
+    if a.stability_only:
+        return
     rho, _ = conditioning(mesh, a.N, a.chi, Lam=max(1e6, 5e4 * a.chi), dt=0.01 / a.chi)
     print(f"area rate per unit tension (W^-1/2 D M D^T W^-1/2): max {rho.max():.3g}, median {np.median(rho):.3g}, "
           f"min {rho.min():.3g}")

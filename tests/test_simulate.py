@@ -32,9 +32,12 @@ def test_sphere_at_rest_stays_put():
     assert ratio < 0.05, ratio
 
 
-def test_perturbed_ellipsoid_relaxes_without_flow(tmp_path):
+@pytest.mark.parametrize("coupling,scheme", [("kernel", "projection"), ("sharp", "projection"),
+                                             ("sharp", "inextensible")])
+def test_perturbed_ellipsoid_relaxes_without_flow(tmp_path, coupling, scheme):
     m = _mesh(level=2)
-    cfg = RunConfig(chi=0.0, N=16, stretch=0.0, t_end=0.02, output_every=0.002, Lambda=1e4, K_volume=1e5)
+    cfg = RunConfig(chi=0.0, N=16, stretch=0.0, t_end=0.02, output_every=0.002, Lambda=1e4, K_volume=1e5,
+                    coupling=coupling, scheme=scheme)
     path = run(m, cfg, tmp_path, progress=False)
     with xr.open_dataset(path) as ds:
         eb = ds.bending_energy.values

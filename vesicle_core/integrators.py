@@ -102,11 +102,11 @@ class Projection(Integrator):
 
 
 def fastest_growth_rate(sigma_mean: float, l_max: int, h: float = 0.0,
-                        kernel: str = DEFAULT_KERNEL) -> tuple[float, int]:
+                        kernel: str = DEFAULT_KERNEL, coupling: str = "kernel") -> tuple[float, int]:
     """Largest growth rate -(Gamma_l + A_l sigma) (eq. 11) over 2 <= l <= l_max [1/tau] and its l.
 
-    With h > 0 each rate is multiplied by the kernel's measured mode damping exp(-(l h / a)^2)
-    (kernels.mode_damping): the rate the IBM can actually produce on that grid, not the continuum's.
+    With h > 0 each rate is multiplied by the coupling's measured mode damping (kernels.mode_damping): the rate
+    the IBM can actually produce on that grid, not the continuum's.
     """
     from .kernels import mode_damping
     from .theory import a_l, gamma_l
@@ -114,15 +114,16 @@ def fastest_growth_rate(sigma_mean: float, l_max: int, h: float = 0.0,
     l = np.arange(2, max(int(l_max), 2) + 1)
     r = -(gamma_l(l) + a_l(l) * sigma_mean)
     if h > 0:
-        r = r * mode_damping(l, h, kernel)
+        r = r * mode_damping(l, h, kernel, coupling)
     i = int(np.argmax(r))
     return float(r[i]), int(l[i])
 
 
 # Largest eigenvalue of the linearised velocity under a uniform tension sigma: 0.11-0.125 sigma / h (power
 # iteration, N = 64, 642 and 2562 vertices, sigma = 2000 and 8000; benchmarks/bench_tension.py). Forward
-# Euler is stable for |lam| dt < 2, i.e. dt < 16 h / |sigma|.
-TENSION_STABILITY = 16.0
+# Euler is stable for |lam| dt < 2, i.e. dt < 16 h / |sigma|. The sharp coupling does not smooth the mesh-scale
+# modes away: 0.56 sigma / h at sigma = 8000 on 2379 vertices (edge ~h) at N = 64, so dt < 3.3 h / |sigma|.
+TENSION_STABILITY = {"kernel": 16.0, "sharp": 3.3}
 
 
 class Inextensible(Integrator):
@@ -163,8 +164,8 @@ class Inextensible(Integrator):
         if state.sigma is not None:
             smax = float(self.solver.xp.abs(state.sigma).max())
             if smax > 0:
-                limits.append(cfg.dt_safety * TENSION_STABILITY * cfg.h / smax)
-            rate, _ = fastest_growth_rate(self.sigma_mean(state, geo), self.l_grid, cfg.h, cfg.kernel)
+                limits.append(cfg.dt_safety * TENSION_STABILITY[cfg.coupling] * cfg.h / smax)
+            rate, _ = fastest_growth_rate(self.sigma_mean(state, geo), self.l_grid, cfg.h, cfg.kernel, cfg.coupling)
             if rate > 0:
                 limits.append(cfg.dt_growth / rate)
         if cfg.chi > 0:

@@ -57,9 +57,21 @@ DEFAULT_KERNEL = "peskin4"
 RESOLUTION_LENGTH = {"peskin4": 1.04, "roma3": 1.35, "bao6": 0.90}
 
 
-def mode_damping(l, h, kernel=DEFAULT_KERNEL):
-    """IBM / theory rate ratio of a membrane mode l on a grid of spacing h (in R), the fit above."""
-    return np.exp(-((np.asarray(l, dtype=float) * h / RESOLUTION_LENGTH[kernel]) ** 2))
+# The same for the sharp coupling at its default floor (parameters.SHARP_FLOOR) and a mesh edge of ~h: the ratio
+# stays within ~1% of 1 and then falls faster, exp(-(l h / a)^p), (a, p) fitted over the ratios below 0.99 at
+# N = 64-192 (benchmarks/bench_resolution.py, docs/solver.md "Sharpened coupling").
+SHARP_RESOLUTION = {"peskin4": (2.36, 4.0), "roma3": (2.36, 4.0), "bao6": (2.36, 4.0)}
+
+
+def mode_damping(l, h, kernel=DEFAULT_KERNEL, coupling="kernel"):
+    """IBM / theory rate ratio of a membrane mode l on a grid of spacing h (in R), the fits above."""
+    lh = np.asarray(l, dtype=float) * h
+    if coupling == "sharp":
+        a, p = SHARP_RESOLUTION[kernel]
+        return np.exp(-((lh / a) ** p))
+    if coupling != "kernel":
+        raise ValueError(f"coupling must be 'kernel' or 'sharp', got {coupling!r}")
+    return np.exp(-((lh / RESOLUTION_LENGTH[kernel]) ** 2))
 _BAO_K = 59.0 / 60.0 - math.sqrt(29.0) / 20.0
 
 

@@ -63,6 +63,12 @@ class Mesh:
 
 
 # --------------------------------------------------------------------------- geometry helpers
+
+def vertices_for_edge(edge: float, radius: float = 1.0) -> int:
+    """Vertex count of a sphere mesh with mean edge ``edge``: equilateral triangles (area sqrt(3)/4 edge^2), two per
+    vertex, covering 4 pi radius^2."""
+    return int(round(4.0 * math.pi * radius**2 / (math.sqrt(3) / 4 * edge**2) / 2.0 + 2))
+
 def face_area_vectors(vertices, faces):
     """Half cross products 0.5 (x_j - x_i) x (x_k - x_i): |a| is the area, a/|a| the outward normal."""
     xi, xj, xk = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]

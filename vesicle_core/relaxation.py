@@ -190,8 +190,24 @@ def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.
     return out
 
 
+def fit_damping(tables: dict, L=5.0, below=0.99) -> tuple[float, float]:
+    """Fit ratio = exp(-(l h / a)^p) to the ratios below ``below`` of :func:`resolution_table` results
+    ({N: {"ratios": {l: r}}}), least squares in log(-log r) against log(l h). Returns (a, p)."""
+    x, y = [], []
+    for N, row in tables.items():
+        for l, r in row["ratios"].items():
+            if 0.0 < r < below:
+                x.append(math.log(l * L / N))
+                y.append(math.log(-math.log(r)))
+    if len(x) < 2:
+        raise ConfigError("fit_damping needs at least two ratios below the threshold")
+    p, c = np.polyfit(x, y, 1)  # log(-log r) = p log(l h) - p log a
+    return float(math.exp(-c / p)), float(p)
+
+
 def default_vertices(N, L=5.0, edge=2.0):
     """Vertex count whose mean edge is ~``edge`` h (h = L/N; the project's rule is 2h, the sharp coupling's h) on the
     unit sphere: ~ 4 pi / (0.433 (edge h)^2 x 2)."""
-    h = L / N
-    return round(4.0 * math.pi / (math.sqrt(3) / 4 * (edge * h) ** 2) / 2.0 + 2)
+    from .mesh import vertices_for_edge
+
+    return vertices_for_edge(edge * L / N)
