@@ -165,3 +165,17 @@ def test_sharp_coupling_resolves_more_modes_per_grid_node():
     assert sharp["l_res"] >= 6
     assert kern["ratios"][3] < 0.85 and kern["ratios"][6] < 0.5
     assert all(sharp["ratios"][l] > kern["ratios"][l] for l in ls)
+
+
+def test_sharp_mode_damping_describes_the_measured_rates():
+    """kernels.mode_damping(coupling="sharp") (fitted at N = 64-192) against a fresh measurement at N = 32, a grid
+    outside the fit: the adaptive step relies on it to know which wrinkles the grid can grow."""
+    from vesicle_core.kernels import mode_damping
+    from vesicle_core.relaxation import resolution_table
+
+    ls = (6, 8, 10)
+    tab = resolution_table([32], ls, coupling="sharp", sharp_floor=0.01, edge=1.0)[32]
+    for l in ls:
+        assert tab["ratios"][l] / mode_damping(l, 5.0 / 32, coupling="sharp") == pytest.approx(1.0, abs=0.06)
+    # and the kernel coupling's fit would be far off: the two couplings need their own damping
+    assert tab["ratios"][10] / mode_damping(10, 5.0 / 32) > 2.0

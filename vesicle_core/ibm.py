@@ -25,6 +25,7 @@ Fresh (M, 64) arrays every step cost page faults comparable to the arithmetic, h
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -164,11 +165,61 @@ def _work(work, shape, dtype, xp):
     return xp.empty(shape, dtype=dtype)
 
 
+def _scatter_loop(out, idx, w, scale):
+    """out[idx[k, j]] += w[k, j] * scale[k] for every k, j in that order: the additions of ``np.add.at`` on the
+    flattened product, in the same order and precision, so the grid is the same bit for bit (tested). Compiled by
+    numba (:func:`_compiled_scatter`); far too slow as plain Python."""
+    for k in range(idx.shape[0]):
+        s = scale[k]
+        for j in range(idx.shape[1]):
+            out[idx[k, j]] += w[k, j] * s
+
+
+def _zero_loop(out, idx):
+    """out[idx[k, j]] = 0 for every k, j: the Spreader's sparse clear. Compiled with :func:`_compiled_scatter`."""
+    for k in range(idx.shape[0]):
+        for j in range(idx.shape[1]):
+            out[idx[k, j]] = 0
+
+
+@functools.cache
+def _compiled_zero():
+    """:func:`_zero_loop` compiled by numba, or None without numba (the fancy-index assignment took ~15 ms of the
+    36 ms spread above)."""
+    return _njit(_zero_loop, (np.zeros(4), np.zeros((1, 2), dtype=np.intp)))
+
+
+def _njit(fn, example_args):
+    """fn compiled by numba (cached on disk where it can be), or None when numba is not installed."""
+    try:
+        import numba
+    except ImportError:
+        return None
+    kernel = numba.njit(cache=True, nogil=True, boundscheck=False)(fn)
+    try:  # compile now: a read-only package folder and user cache make caching raise here
+        kernel(*example_args)
+    except RuntimeError:
+        kernel = numba.njit(cache=False, nogil=True, boundscheck=False)(fn)
+    return kernel
+
+
+@functools.cache
+def _compiled_scatter():
+    """:func:`_scatter_loop` compiled by numba (cached on disk), or None without numba. At N = 128 with 10242
+    points np.add.at took 20 ms of a 36 ms spread (two other runs on the 2-core machine; ~12% of a Stokes solve)."""
+    return _njit(_scatter_loop, (np.zeros(4), np.zeros((1, 2), dtype=np.intp), np.zeros((1, 2)), np.zeros(1)))
+
+
 def _scatter(F, stencil, grid, backend, out, work=None):
     """out[c] += sum_k F_kc w_k / h^3 at the stencil nodes (out contiguous). Returns (out, work)."""
     xp = backend.xp
     inv_h3 = 1.0 / grid.h**3
     dt = out.dtype
+    compiled = None if backend.is_gpu else _compiled_scatter()
+    if compiled is not None and stencil.w.dtype == dt:
+        for c in range(3):
+            compiled(out[c].reshape(-1), stencil.idx, stencil.w, (F[:, c] * inv_h3).astype(dt, copy=False))
+        return out, work
     vals = _work(work, stencil.w.shape, dt, xp)
     idx = stencil.idx.reshape(-1)
     for c in range(3):
@@ -221,8 +272,12 @@ class Spreader:
             raise ConfigError(f"stencil was prepared for N={stencil.N}, grid has N={self.grid.N}")
         buf = self.buffer
         if self._touched is not None:
+            zero = None if self.backend.is_gpu else _compiled_zero()
             for c in range(3):
-                buf[c].reshape(-1)[self._touched] = 0
+                if zero is not None:
+                    zero(buf[c].reshape(-1), self._touched.reshape(1, -1))
+                else:
+                    buf[c].reshape(-1)[self._touched] = 0
         idx = stencil.idx.reshape(-1)
         if self._touched is not None and self._touched.shape == idx.shape:
             self._touched[...] = idx
