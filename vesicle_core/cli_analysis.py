@@ -69,6 +69,7 @@ def add_theory(sub):
                    help="the PA as an IBM grid of this spacing (in R) carries it: every mode's rates times the "
                         "kernel's measured damping (theory.grid_damping); default: the continuum")
     p.add_argument("--kernel", choices=sorted(KERNELS), default=DEFAULT_KERNEL, help="kernel of --grid-h")
+    p.add_argument("--coupling", choices=("kernel", "sharp"), default="kernel", help="coupling of --grid-h")
     p.set_defaults(func=_cmd_theory)
 
 
@@ -77,7 +78,8 @@ def _cmd_theory(a):
     from .theory import run_theory
 
     ds = run_theory(a.delta, a.S, l_max=a.l_max, seed=a.seed, n_out=a.n_out, store_modes=not a.no_modes,
-                    grid_h=a.grid_h, kernel=a.kernel if a.grid_h else None)
+                    grid_h=a.grid_h, kernel=a.kernel if a.grid_h else None,
+                    coupling=a.coupling if a.grid_h else None)
     _set_cf(ds, "perturbation analysis of a quasi-spherical vesicle after a flow reversal")
     write_dataset(ds, a.output)
     print(f"wrote {a.output}: t_* = {float(ds.t_star):.4g}, l_* (eq. 31) = {float(ds.l_star):.4g}, "

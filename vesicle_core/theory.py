@@ -431,12 +431,13 @@ class PASolution:
         return a
 
 
-def grid_damping(l, grid_h, kernel=None):
-    """r_l: the rate factor of mode l on an IBM grid of spacing ``grid_h`` (in R) with ``kernel``.
+def grid_damping(l, grid_h, kernel=None, coupling="kernel"):
+    """r_l: the rate factor of mode l on an IBM grid of spacing ``grid_h`` (in R) with ``kernel`` and ``coupling``.
 
     The IBM moves the membrane with the fluid velocity interpolated from forces spread by the kernel, so every
     membrane-driven rate of a mode l -- bending relaxation Gamma_l and tension A_l sigma alike -- is slowed by the
-    same factor, measured from single-mode relaxation on the grid (kernels.mode_damping, exp(-(l h / a)^2)).
+    same factor, measured from single-mode relaxation on the grid (kernels.mode_damping: exp(-(l h / a)^2) for the
+    kernel coupling, exp(-(l h / a)^p) for the sharp one).
     The background flow is imposed at the vertices and is not filtered. ``grid_h`` None: the continuum (1).
     """
     from .kernels import DEFAULT_KERNEL, mode_damping
@@ -445,16 +446,17 @@ def grid_damping(l, grid_h, kernel=None):
     if grid_h is None:
         return np.ones_like(l)
     check_range("grid_h", grid_h, 0.0, None, lo_open=True)
-    return mode_damping(l, float(grid_h), kernel or DEFAULT_KERNEL)
+    return mode_damping(l, float(grid_h), kernel or DEFAULT_KERNEL, coupling or "kernel")
 
 
 def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, amplitudes="fixed",
           thermal="literal", normalisation="area", rtol=1e-12, atol=1e-14, threshold=NONTRIVIAL_THRESHOLD,
-          grid_h=None, kernel=None):
+          grid_h=None, kernel=None, coupling=None):
     """Integrate eqs. (11)-(12) after the reversal and locate t_*, l_max, l_* (see module docstring).
 
     delta: excess area; S: flow strength (> 0); t_end: end in gamma_dot (t - t0) (default :func:`default_t_end`).
-    grid_h, kernel: the PA as an IBM grid carries it, Gamma_l and A_l multiplied by r_l = :func:`grid_damping`
+    grid_h, kernel, coupling: the PA as an IBM grid carries it, Gamma_l and A_l multiplied by r_l =
+    :func:`grid_damping`
     (the tension of eq. (12) then follows from the damped rates, so the area is still conserved): a model of what
     the resolution does to the simulation, with no parameter fitted to wrinkling runs.
     Returns a :class:`PASolution`; :func:`run_theory` turns it into a Dataset.
@@ -474,7 +476,7 @@ def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, ampli
     kt = _kT(kT_over_kappa)
     u0 = initial_state(L, S, delta=delta, seed=seed, kT_over_kappa=kt, amplitudes=amplitudes, thermal=thermal,
                        normalisation=normalisation)
-    factor = None if grid_h is None else grid_damping(np.arange(L + 1), grid_h, kernel)
+    factor = None if grid_h is None else grid_damping(np.arange(L + 1), grid_h, kernel, coupling)
     sol = PASolution(delta=delta, S=S, chi=chi, l_max=L, seed=int(seed), kT_over_kappa=kt,
                      normalisation=normalisation, amplitudes=amplitudes, thermal=thermal, s_end=s_end, u0=u0,
                      ode=None, nfev=0, mode_factor=factor)
@@ -513,7 +515,7 @@ def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, ampli
 
 def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kappa=None, *, amplitudes="fixed",
                thermal="literal", normalisation="area", store_modes=True, rtol=1e-12, atol=1e-14, grid_h=None,
-               kernel=None):
+               kernel=None, coupling=None):
     """PA of Sec. III after the reversal as an xarray Dataset (layout of the simulation spectra).
 
     coords   time (gamma_dot (t - t0), n_out points in [0, t_end]), t_tau (time, in tau), l (0..l_max),
@@ -531,7 +533,7 @@ def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kapp
     check_range("n_out", n_out, 2, None, integer=True)
     sol = solve(delta, S, l_max=l_max, seed=seed, t_end=t_end, kT_over_kappa=kT_over_kappa,
                 amplitudes=amplitudes, thermal=thermal, normalisation=normalisation, rtol=rtol, atol=atol,
-                grid_h=grid_h, kernel=kernel)
+                grid_h=grid_h, kernel=kernel, coupling=coupling)
     L = sol.l_max
     s = np.linspace(0.0, sol.s_end, int(n_out))
     time = s * sol.chi
@@ -596,8 +598,8 @@ def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kapp
     if grid_h is not None:
         from .kernels import DEFAULT_KERNEL
 
-        attrs.update(grid_h=float(grid_h), kernel=kernel or DEFAULT_KERNEL,
-                     grid_damping="Gamma_l and A_l times kernels.mode_damping(l, grid_h, kernel)")
+        attrs.update(grid_h=float(grid_h), kernel=kernel or DEFAULT_KERNEL, coupling=coupling or "kernel",
+                     grid_damping="Gamma_l and A_l times kernels.mode_damping(l, grid_h, kernel, coupling)")
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
