@@ -272,8 +272,8 @@ def _trajectory_attrs(mesh, cfg: RunConfig, solver: IBMSolver, dt: float, adapti
     return {k: (str(v) if isinstance(v, bool) else v) for k, v in attrs.items()}
 
 
-# The sharp coupling resolves what the markers resolve: with a mesh edge of 2h its gain shrinks (l = 10 at N = 64:
-# 0.44 -> 0.76 of theory against 0.99 with edge h) and mesh-scale modes get the full mobility (docs/solver.md)
+# The sharp coupling resolves what the markers resolve: with a mesh edge of 2h its l_res at N = 128 is 16 against 25
+# with edge h, and l = 2 is off by up to 5.6% at N = 64 (docs/solver.md, "Sharpened coupling")
 SHARP_EDGE_MAX = 1.5
 
 
