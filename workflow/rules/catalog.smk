@@ -15,7 +15,5 @@ rule catalog:
         parquet="results/catalog.parquet",
     log:
         "results/logs/catalog/catalog.log",
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle catalog {input} -o {output.csv} --json {output.json} --parquet {output.parquet} > {log} 2>&1"
