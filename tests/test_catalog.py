@@ -153,7 +153,7 @@ def test_write_catalog_rows_and_esm_json(tmp_path):
     for key in ("esmcat_version", "id", "description", "attributes", "assets", "catalog_file"):
         assert key in esm
     assert esm["assets"] == {"column_name": "path", "format": "netcdf"}
-    assert esm["catalog_file"] == "catalog.csv"
+    assert esm["catalog_file"] == ("catalog.parquet" if C.have_pyarrow() else "catalog.csv")
     assert {a["column_name"] for a in esm["attributes"]} >= {"kind", "case_id", "Delta", "S", "chi", "N"}
     # every row points at a file that opens, also through the JSON
     for row in C.read_catalog(root / "catalog.json"):
@@ -431,13 +431,55 @@ def test_catalog_json_opens_with_intake_esm(tmp_path, monkeypatch):
     keys = set(cat.keys())
     assert {"spectra.D0.116_S553_N32_L3", "spectra.D0.116_S553_N64_L3", "theory.D0.116_S553", "fit.lstar_vs_S",
             "mesh.icosphere_L3_D0.116"} <= keys and len(keys) == 7
-    # intake-esm reads the columns as text
-    assert list(cat.search(kind="spectra", N="64").df["case_id"]) == ["D0.116_S553_N64_L3"]
-    assert len(cat.search(kind="spectra", S="553").df) == 2
+    # the catalog_file is the typed Parquet copy: numbers are numbers
+    assert json.loads((root / "catalog.json").read_text())["catalog_file"] == "catalog.parquet"
+    assert cat.df["N"].dtype.kind == "i" or str(cat.df["N"].dtype) == "Int64", cat.df.dtypes
+    assert cat.df["S"].dtype.kind == "f"
+    assert list(cat.search(kind="spectra", N=64).df["case_id"]) == ["D0.116_S553_N64_L3"]
+    assert list(cat.df[cat.df["N"] == 64]["case_id"]) == ["D0.116_S553_N64_L3"]
+    assert len(cat.search(kind="spectra", S=553).df) == 2
+    assert cat.search(kind="spectra", N="64").df.empty  # text no longer matches
     assert set(cat.search(variables=".*'Delta_tilde_l'.*").df["kind"]) == {"spectra"}
     # asset paths are relative to the catalog; intake-esm opens them from the working directory
     monkeypatch.chdir(root)
-    dsets = cat.search(kind="spectra", N="64").to_dataset_dict(progressbar=False)
+    dsets = cat.search(kind="spectra", N=64).to_dataset_dict(progressbar=False)
     ds = dsets["spectra.D0.116_S553_N64_L3"]
     with xr.open_dataset(root / "runs" / "D0.116_S553_N64_L3" / "spectra.nc") as ref:
         np.testing.assert_array_equal(ds["Delta_l"].values, ref["Delta_l"].values)
+
+
+# --------------------------------------------------------------------------- typed Parquet catalog
+def test_parquet_catalog_is_typed_and_matches_the_csv(tmp_path):
+    pq = pytest.importorskip("pyarrow.parquet")
+    root = tmp_path / "results"
+    paths = write_sweep(root, [(0.116, 553.0, 21), (0.116, 1106.5, 31)])
+    rows = C.write_catalog(paths, root / "catalog.csv")
+    assert json.loads((root / "catalog.json").read_text())["catalog_file"] == "catalog.parquet"
+    table = pq.read_table(root / "catalog.parquet")
+    assert table.column_names == list(C.COLUMNS)
+    types = {f.name: str(f.type) for f in table.schema}
+    assert {types[c] for c in C.INTEGER_COLUMNS} == {"int64"}
+    assert {types[c] for c in set(C.NUMERIC_COLUMNS) - set(C.INTEGER_COLUMNS)} == {"double"}
+    assert types["kind"] == types["path"] == "string"
+    got = table.to_pylist()
+    assert [r["path"] for r in got] == [r["path"] for r in rows]
+    assert [r["N"] for r in got] == [r["N"] for r in rows]
+    mesh = next(r for r in got if r["kind"] == "mesh")
+    assert mesh["S"] is None and mesh["N"] is None  # empty cells are nulls, not NaN or text
+    # read_catalog given the JSON reads the CSV beside the Parquet file: same rows
+    assert [r["path"] for r in C.read_catalog(root / "catalog.json")] == [r["path"] for r in rows]
+
+
+def test_catalog_without_parquet_points_at_the_csv(tmp_path, monkeypatch):
+    root = tmp_path / "results"
+    paths = write_sweep(root, [(0.116, 553.0, 21)])
+    C.write_catalog(paths, root / "catalog.csv", parquet=False)
+    assert json.loads((root / "catalog.json").read_text())["catalog_file"] == "catalog.csv"
+    # without pyarrow the default writes the CSV alone and drops a stale typed copy; asking for it is an error
+    (root / "catalog.parquet").write_text("stale")
+    monkeypatch.setattr(C, "have_pyarrow", lambda: False)
+    C.write_catalog(paths, root / "catalog.csv")
+    assert not (root / "catalog.parquet").exists()
+    assert json.loads((root / "catalog.json").read_text())["catalog_file"] == "catalog.csv"
+    with pytest.raises(C.CatalogError, match="pyarrow"):
+        C.write_catalog(paths, root / "catalog.csv", parquet=True)

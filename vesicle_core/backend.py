@@ -441,5 +441,5 @@ def get_backend(name="numpy", dtype="float64", fft_workers=1, fft_library="auto"
         lib = "pyfftw" if _import_pyfftw() is not None else "scipy"
     elif lib == "pyfftw" and _import_pyfftw() is None:
         raise ConfigError("fft_library 'pyfftw' requested but pyFFTW is not importable; "
-                          "use 'scipy' or 'auto'")
+                          "use 'scipy' or 'auto', or install it: pip install -e '.[fast]'")
     return Backend("numpy", np, dt, int(fft_workers), lib, fft_planner)

@@ -17,9 +17,10 @@ the *nominal* (configured) Delta and S; the datasets themselves record the meshe
 
 Catalog
 -------
-``write_catalog`` writes ``catalog.csv`` (one row per netCDF dataset) and an ESM-collection JSON beside it
-(esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attributes``, ``assets``, ``aggregation_control``,
-``catalog_file``). Columns (:data:`COLUMNS`):
+``write_catalog`` writes ``catalog.csv`` (one row per netCDF dataset, for people), the same rows typed in
+``catalog.parquet`` (when pyarrow is installed: the ``workflow`` and ``esm`` extras) and an ESM-collection JSON
+beside them (esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attributes``, ``assets``,
+``aggregation_control``, ``catalog_file``: the Parquet file, else the CSV). Columns (:data:`COLUMNS`):
 
     kind              mesh | trajectory | spectra | theory | fit
     case_id           the id above (file stem for meshes, theory and fits)
@@ -41,8 +42,11 @@ Missing values are empty cells; integral numbers are written without ".0" (``S``
 relative to the directory holding the catalog, so a results tree can be moved as a whole.
 
 intake-esm (tested with 2025.12.12): ``intake.open_esm_datastore("results/catalog.json")`` groups the assets by
-kind and case id (keys ``spectra.D0.116_S553_N32_L3``, one file each). It reads every column as text, so search
-with ``N="64"``, ``S="553"`` (a number matches nothing), and a variable by pattern: ``variables=".*'l_star'.*"``.
+kind and case id (keys ``spectra.D0.116_S553_N32_L3``, one file each). Through the Parquet ``catalog_file`` the
+columns keep their types (N, mesh_level, n_vertices int64; Delta, S, chi, delta_mesh, l_star, t_star float64;
+empty cells null), so search with numbers: ``N=64``, ``S=553``; a variable by pattern:
+``variables=".*'l_star'.*"``. (A catalog written without pyarrow points at the CSV, which intake-esm reads as
+text: ``N="64"`` there.)
 It opens the relative ``path`` from the current working directory, not from the catalog's: call
 ``to_dataset_dict()`` with the catalog's directory as working directory (or use :func:`open_sweep`, which resolves
 the paths itself).
@@ -402,7 +406,7 @@ def _fmt_cell(v):
 
 
 def esm_collection(catalog_file: str, description: str | None = None, cid: str = "vesicle-wrinkling") -> dict:
-    """ESM-collection (esmcat 0.1.0) description of a catalog CSV."""
+    """ESM-collection (esmcat 0.1.0) description of a catalog table (``catalog_file``: Parquet or CSV)."""
     described = {
         "kind": "dataset kind: mesh | trajectory | spectra | theory | fit",
         "case_id": "sweep point id (D<Delta>_S<S>_N<N>_L<level>), theory id (D<Delta>_S<S>) or mesh id",
@@ -442,13 +446,65 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
     }
 
 
-def write_catalog(paths, csv_path, json_path=None, description=None) -> list[dict]:
-    """Write ``csv_path`` (and the ESM-collection JSON ``json_path``, default: same name with .json) for the
-    netCDF files ``paths``. Paths in the CSV are relative to its directory. Returns the rows."""
+def _arrow_table(rows):
+    """The rows as a typed Arrow table: N, mesh_level, n_vertices int64, the other numeric columns float64 (empty
+    cells null in both), text columns as strings ("" when empty), ``variables`` as the CSV's list literal."""
+    import pyarrow as pa
+
+    def column(c):
+        if c in NUMERIC_COLUMNS:
+            cast = int if c in INTEGER_COLUMNS else float
+            values = [None if _is_empty(r[c]) else cast(r[c]) for r in rows]
+            return pa.array(values, type=pa.int64() if c in INTEGER_COLUMNS else pa.float64())
+        return pa.array([_fmt_cell(r[c]) for r in rows], type=pa.string())
+
+    return pa.Table.from_arrays([column(c) for c in COLUMNS], names=list(COLUMNS))
+
+
+def _write_parquet(rows, path: Path) -> None:
+    import pyarrow.parquet as pq
+
+    from .io import _temp_beside
+
+    tmp = _temp_beside(path)
+    try:
+        pq.write_table(_arrow_table(rows), tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def have_pyarrow() -> bool:
+    try:
+        import pyarrow.parquet  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def write_catalog(paths, csv_path, json_path=None, description=None, parquet_path=None,
+                  parquet: bool | None = None) -> list[dict]:
+    """Write ``csv_path`` (for people), the typed ``parquet_path`` (default: the CSV name with .parquet) and the
+    ESM-collection JSON ``json_path`` (default: the CSV name with .json) for the netCDF files ``paths``. Paths in
+    the catalogs are relative to their directory. Returns the rows.
+
+    The JSON's ``catalog_file`` is the Parquet file, so intake-esm sees numbers as numbers (``N == 64``).
+    ``parquet``: True needs pyarrow (``pip install -e ".[workflow]"`` or ``".[esm]"``), False writes the CSV alone
+    (``catalog_file`` is then the CSV, read as text by intake-esm), None (default) writes Parquet when pyarrow is
+    installed (and otherwise removes a stale Parquet catalog of the same name)."""
     from .io import atomic_write_text
 
     csv_path = Path(csv_path)
     json_path = Path(json_path) if json_path else csv_path.with_suffix(".json")
+    parquet_path = Path(parquet_path) if parquet_path else csv_path.with_suffix(".parquet")
+    if parquet is None:
+        parquet = have_pyarrow()
+        if not parquet:
+            parquet_path.unlink(missing_ok=True)
+    elif parquet and not have_pyarrow():
+        raise CatalogError(f"writing {parquet_path} needs pyarrow: pip install pyarrow (in the workflow and esm "
+                           "extras), or write the CSV catalog alone")
     root = csv_path.parent.resolve()
     rows = build_catalog(paths, root=root)
     seen = {}
@@ -464,8 +520,14 @@ def write_catalog(paths, csv_path, json_path=None, description=None) -> list[dic
     for r in rows:
         w.writerow([_fmt_cell(r[c]) for c in COLUMNS])
     atomic_write_text(buf.getvalue(), csv_path)
-    rel_csv = os.path.relpath(csv_path.resolve(), json_path.resolve().parent)
-    atomic_write_text(json.dumps(esm_collection(rel_csv, description), indent=2) + "\n", json_path)
+    table = csv_path
+    if parquet:
+        if parquet_path.resolve().parent != root:
+            raise CatalogError(f"{parquet_path}: the Parquet catalog must lie beside {csv_path} (paths are relative)")
+        _write_parquet(rows, parquet_path)
+        table = parquet_path
+    rel = os.path.relpath(table.resolve(), json_path.resolve().parent)
+    atomic_write_text(json.dumps(esm_collection(rel, description), indent=2) + "\n", json_path)
     return rows
 
 
@@ -482,6 +544,8 @@ def _catalog_csv(path) -> Path:
         if "catalog_file" not in meta:
             raise CatalogError(f"{path}: ESM-collection JSON without 'catalog_file'")
         path = (path.parent / meta["catalog_file"]).resolve()
+        if path.suffix == ".parquet":  # the typed copy; the CSV beside it holds the same rows
+            path = path.with_suffix(".csv")
     if not path.is_file():
         raise CatalogError(f"{path}: catalog does not exist")
     return path

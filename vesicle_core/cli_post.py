@@ -8,11 +8,13 @@ subcommand sets ``func`` to a function of the parsed arguments that returns 0.
     vesicle figures wrinkles SPECTRA.nc [--times T ...] -o FIG.png [FIG.pdf]          Fig. 8 style
     vesicle figures views TRAJECTORY.nc [--spectra SPECTRA.nc | --time T] -o FIG.png   Figs. 6e/7c
     vesicle figures snapshots TRAJECTORY.nc [--times T ... | --n 6] -o FIG.png         strip over gamma_dot t
-    vesicle catalog FILE.nc ... -o results/catalog.csv [--json results/catalog.json]
+    vesicle catalog FILE.nc ... -o results/catalog.csv [--json results/catalog.json] [--parquet results/catalog.parquet]
     vesicle report --case ID GROUP TRAJECTORY SPECTRA THEORY ... -o docs/validation.md    the validation study
 """
 
 from __future__ import annotations
+
+import os
 
 from .cli_args import finite_float, int_in
 
@@ -151,13 +153,16 @@ def add_figures(subparsers):
 def _cmd_catalog(a):
     from .catalog import write_catalog
 
-    rows = write_catalog(a.inputs, a.output, a.json, description=a.description)
+    rows = write_catalog(a.inputs, a.output, a.json, description=a.description, parquet_path=a.parquet,
+                         parquet=True if a.parquet else None)
     kinds = {}
     for r in rows:
         kinds[r["kind"]] = kinds.get(r["kind"], 0) + 1
     summary = ", ".join(f"{n} {k}" for k, n in kinds.items())
     json_path = a.json or str(a.output).rsplit(".", 1)[0] + ".json"
-    print(f"wrote {a.output} ({len(rows)} datasets: {summary}) and {json_path}")
+    parquet = a.parquet or str(a.output).rsplit(".", 1)[0] + ".parquet"
+    typed = f", {parquet}" if os.path.exists(parquet) else ""
+    print(f"wrote {a.output} ({len(rows)} datasets: {summary}){typed} and {json_path}")
     return 0
 
 
@@ -171,6 +176,8 @@ def add_catalog(subparsers):
     p.add_argument("-o", "--output", required=True, help="catalog CSV to write")
     p.add_argument("--json", default=None, help="ESM-collection JSON to write (default: the CSV name with .json)")
     p.add_argument("--description", default=None, help="description stored in the JSON")
+    p.add_argument("--parquet", default=None, help="typed Parquet copy of the catalog, the JSON's catalog_file "
+                   "(needs pyarrow; default: the CSV name with .parquet, written when pyarrow is installed)")
     p.set_defaults(func=_cmd_catalog)
     return p
 

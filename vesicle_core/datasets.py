@@ -5,7 +5,11 @@ Trajectory format (written by the solver, ``trajectory.nc``)
     coords   time (time) = gamma_dot (t - t_reverse), negative before the flow reversal; t_tau (time) in tau
     vars     node_x, node_y, node_z (time, n_node) [R]; face_node_connectivity (n_face, 3) int;
              face_tension (time, n_face) [kappa/R^2]; tension (time) [kappa/R^2]; area, volume, bending_energy,
-             tension_energy, area_drift, volume_drift (time)
+             tension_energy, area_drift, volume_drift (time); since the format became UGRID (a finished run's
+             file): the mesh topology ``mesh`` and node_lon, node_lat (n_node), the vertex directions of the
+             first frame seen from its centroid, the mesh's node coordinates (docs/datasets.md)
+    units    in the file, a solver unit X is written as units "1" with nondimensional_units "X"
+             (:func:`vesicle_core.units.cf_unit_attrs`); the brackets above give X
     attrs    chi, S, delta (meshed excess area), Re, N, L, dt, Lambda, mesh_family, mesh_level, backend, ...;
              complete = 1 when the run finished
 
@@ -144,16 +148,21 @@ _KEEP_ENCODING = ("dtype", "_FillValue", "scale_factor", "add_offset", "units", 
 def write_dataset(ds: xr.Dataset, path, complevel: int = 4) -> Path:
     """Write ``ds`` to netCDF4 atomically (temp file beside ``path``, then rename: an interrupted write never
     leaves a file under the final name). Variables with more than 10^4 elements are zlib-compressed
-    (``complevel``, with shuffle); attributes are made netCDF-safe first. Returns the path."""
+    (``complevel``, with shuffle); attributes are made netCDF-safe first, solver units become CF units
+    (:func:`vesicle_core.units.cf_unit_attrs`) and the global attributes state the scales
+    (:data:`vesicle_core.units.SCALE_ATTRS`). The values are written unchanged. Returns the path."""
     from .io import atomic_to_netcdf
+    from .units import SCALE_ATTRS, cf_unit_attrs
 
     check_range("complevel", complevel, 0, 9, integer=True)
     path = Path(path)
     out = ds.copy(deep=False)
-    out.attrs = netcdf_safe_attrs(ds.attrs)
+    out.attrs = {**netcdf_safe_attrs(ds.attrs), **{k: v for k, v in SCALE_ATTRS.items() if k not in ds.attrs}}
     encoding = {}
     for name, var in out.variables.items():
-        out[name].attrs = netcdf_safe_attrs(var.attrs)
+        out[name].attrs = netcdf_safe_attrs(cf_unit_attrs(var.attrs))
+        if "units" in out[name].encoding and "units" in out[name].attrs:
+            del out[name].encoding["units"]
         if var.size > COMPRESS_MIN_SIZE and var.dtype.kind in "iufb":
             enc = {k: v for k, v in var.encoding.items() if k in _KEEP_ENCODING}
             enc.update(zlib=True, complevel=int(complevel), shuffle=True)

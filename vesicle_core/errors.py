@@ -17,6 +17,23 @@ class NumericalInstability(VesicleError, RuntimeError):
     """A run produced NaN/Inf, blew up, or drifted beyond its allowed area/volume error."""
 
 
+class MissingDependency(VesicleError, ImportError):
+    """A package of an optional extra that a feature needs is not installed (the message names the extra)."""
+
+
+def require(module: str, extra: str, feature: str):
+    """Import and return ``module``, or raise MissingDependency saying which extra of the project installs it
+    (the core needs numpy, scipy, xarray, netCDF4, PyYAML and tqdm only; pyproject.toml lists the extras)."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise MissingDependency(
+            f"{feature} needs {module.split('.')[0]} ({exc}): pip install 'vesicle-wrinkling[{extra}]', or "
+            f"pip install -e '.[{extra}]' in a checkout") from None
+
+
 def check_range(name, value, lo=None, hi=None, *, lo_open=False, hi_open=False, integer=False):
     """Return ``value`` if it lies in the allowed range, else raise ConfigError naming ``name``.
 

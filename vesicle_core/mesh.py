@@ -339,33 +339,74 @@ def make_vesicle(
     return m
 
 
-# --------------------------------------------------------------------------- netCDF I/O (UGRID-style)
+# --------------------------------------------------------------------------- netCDF I/O (UGRID 1.0)
+#: The UGRID mesh topology of the mesh and trajectory files: a 2D triangle mesh whose node coordinates are the
+#: vertex directions (node_lon, node_lat) seen from the centroid; the Cartesian positions node_x/y/z are fields
+#: on its nodes (time-dependent in a trajectory). UGRID readers (xugrid, uxarray) open the files with it.
+UGRID_TOPOLOGY = {
+    "cf_role": "mesh_topology",
+    "long_name": "topology of the triangulated membrane (a closed surface: nodes placed by their direction)",
+    "topology_dimension": 2,
+    "node_coordinates": "node_lon node_lat",
+    "face_node_connectivity": "face_node_connectivity",
+    "node_dimension": "n_node",
+    "face_dimension": "n_face",
+}
+
+
+def node_lonlat(vertices) -> tuple[np.ndarray, np.ndarray]:
+    """Longitude and latitude (degrees) of each vertex's direction from the vertex centroid: the node coordinates
+    of the UGRID topology (a star-shaped closed surface maps one to one onto the sphere)."""
+    d = np.asarray(vertices, dtype=float)
+    d = d - d.mean(axis=0)
+    r = np.linalg.norm(d, axis=1)
+    lon = np.degrees(np.arctan2(d[:, 1], d[:, 0]))
+    lat = np.degrees(np.arcsin(np.clip(d[:, 2] / np.where(r > 0, r, 1.0), -1.0, 1.0)))
+    return lon, lat
+
+
+def ugrid_variables(vertices) -> dict:
+    """The UGRID variables other than the connectivity: the topology ``mesh`` and node_lon/node_lat of
+    ``vertices`` (V, 3), as xarray (dims, data, attrs) tuples."""
+    lon, lat = node_lonlat(vertices)
+    return {
+        "mesh": ((), np.int32(0), dict(UGRID_TOPOLOGY)),
+        "node_lon": (("n_node",), lon, {
+            "standard_name": "longitude", "units": "degrees_east",
+            "long_name": "azimuth of the vertex direction from the centroid (x towards 0, y towards 90)"}),
+        "node_lat": (("n_node",), lat, {
+            "standard_name": "latitude", "units": "degrees_north",
+            "long_name": "elevation of the vertex direction from the centroid above the x-y plane"}),
+    }
+
+
+#: attributes of the connectivity and of node fields in UGRID files
+FACE_NODE_ATTRS = {"cf_role": "face_node_connectivity", "start_index": 0,
+                   "long_name": "vertices of each triangle, counter-clockwise seen from outside"}
+NODE_FIELD_ATTRS = {"mesh": "mesh", "location": "node"}
+FACE_FIELD_ATTRS = {"mesh": "mesh", "location": "face"}
+
+
 def to_dataset(mesh: Mesh):
     import xarray as xr
 
     from . import __version__
+    from .units import SCALE_ATTRS, cf_unit_attrs
 
     v, f = mesh.vertices, mesh.faces
     ds = xr.Dataset(
         {
-            "mesh": ((), np.int32(0), {
-                "cf_role": "mesh_topology", "topology_dimension": 2,
-                "node_coordinates": "node_x node_y node_z",
-                "face_node_connectivity": "face_node_connectivity",
-            }),
-            "node_x": (("n_node",), v[:, 0], {"standard_name": "projection_x_coordinate", "units": "R",
-                                              "long_name": "vertex x"}),
-            "node_y": (("n_node",), v[:, 1], {"units": "R", "long_name": "vertex y"}),
-            "node_z": (("n_node",), v[:, 2], {"units": "R", "long_name": "vertex z"}),
-            "face_node_connectivity": (("n_face", "n_vertex_per_face"), f.astype(np.int32), {
-                "cf_role": "face_node_connectivity", "start_index": 0,
-                "long_name": "vertices of each triangle, counter-clockwise seen from outside",
-            }),
+            **ugrid_variables(v),
+            **{f"node_{c}": (("n_node",), v[:, i], cf_unit_attrs({"units": "R", "long_name": f"vertex {c}",
+                                                                  **NODE_FIELD_ATTRS}))
+               for i, c in enumerate("xyz")},
+            "face_node_connectivity": (("n_face", "n_vertex_per_face"), f.astype(np.int32), dict(FACE_NODE_ATTRS)),
         },
         attrs={
             "Conventions": "CF-1.10 UGRID-1.0",
             "title": "vesicle membrane mesh",
             "source": f"vesicle_core {__version__}",
+            **SCALE_ATTRS,
             **{k: (v_ if not isinstance(v_, bool) else int(v_)) for k, v_ in mesh.attrs.items()},
         },
     )
@@ -393,7 +434,9 @@ def load(path) -> Mesh:
     except (KeyError, OSError, ValueError) as exc:
         raise MeshError(f"{path} is not a vesicle mesh file (need node_x/y/z and face_node_connectivity): "
                         f"{exc}") from None
-    for k in ("Conventions", "title", "source"):
+    from .units import SCALE_ATTRS
+
+    for k in ("Conventions", "title", "source", *SCALE_ATTRS):
         attrs.pop(k, None)
     try:
         check_closed_surface(v, f)

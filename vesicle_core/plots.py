@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, require
 
 __all__ = ["plot_dynamics", "plot_lstar", "plot_wrinkles", "save_figure", "FORMATS"]
 
@@ -31,7 +31,7 @@ STAGE_COLOURS = ("#fde0c5", "#d5e8d4", "#dae8fc")
 
 
 def _mpl():
-    import matplotlib
+    matplotlib = require("matplotlib", "viz", "plotting")
 
     if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg", "cairo"):
         try:

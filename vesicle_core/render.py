@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, require
 
 __all__ = [
     "VIEWS",
@@ -94,6 +94,8 @@ def select_engine(engine: str | None = None) -> str:
         raise ConfigError(f"render engine must be 'auto', 'pyvista' or 'matplotlib', got {engine!r}")
     if engine == "auto":
         return "pyvista" if pyvista_works() else "matplotlib"
+    if engine == "pyvista":
+        require("pyvista", "viz", "the render engine 'pyvista'")
     return engine
 
 
@@ -218,6 +220,7 @@ def _mpl_images(shapes, faces, views, px, clim, cmap, extent):
 
 
 def _render(shapes, faces, views, px, clim, cmap, engine):
+    require("matplotlib", "viz", "rendering")  # both engines: matplotlib composes the figure
     extent = max(float(np.ptp(v, axis=0).max()) for v, _ in shapes)
     eng = select_engine(engine)
     if eng == "pyvista":

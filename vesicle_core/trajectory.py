@@ -24,6 +24,8 @@ import numpy as np
 
 from .errors import ConfigError, NumericalInstability
 from .io import atomic_to_netcdf
+from .mesh import FACE_FIELD_ATTRS, FACE_NODE_ATTRS, NODE_FIELD_ATTRS, ugrid_variables
+from .units import SCALE_ATTRS, cf_unit_attrs
 
 TRAJECTORY = "trajectory.nc"
 PARTIAL = "trajectory.partial.nc"
@@ -138,26 +140,25 @@ class TrajectoryWriter:
             nc.createDimension("n_vertex_per_face", 3)
             fv = nc.createVariable("face_node_connectivity", "i4", ("n_face", "n_vertex_per_face"))
             fv[:] = self.faces
-            fv.cf_role = "face_node_connectivity"
-            fv.start_index = 0
+            fv.setncatts(FACE_NODE_ATTRS)
             for name in ("node_x", "node_y", "node_z"):
                 v = nc.createVariable(name, "f8", ("time", "n_node"), zlib=True, complevel=1)
-                v.units = "R"
+                v.setncatts(cf_unit_attrs({"units": "R", **NODE_FIELD_ATTRS}))
             if self.velocity:
                 for name in self.VELOCITY_VARS:
                     v = nc.createVariable(name, "f8", ("time", "n_node"), zlib=True, complevel=1)
-                    v.units = "R/tau"
-                    v.long_name = "membrane velocity dX/dt of the step taken from this frame (background flow included)"
+                    v.setncatts(cf_unit_attrs({"units": "R/tau", **NODE_FIELD_ATTRS, "long_name": (
+                        "membrane velocity dX/dt of the step taken from this frame (background flow included)")}))
             v = nc.createVariable("face_tension", "f4", ("time", "n_face"), zlib=True, complevel=1)
-            v.units = "kappa/R^2"
-            v.long_name = "local surface tension per triangle (penalty Lambda (A_l - A_l0)/A_l0, or the solved tension)"
+            v.setncatts(cf_unit_attrs({"units": "kappa/R^2", **FACE_FIELD_ATTRS, "long_name": (
+                "local surface tension per triangle (penalty Lambda (A_l - A_l0)/A_l0, or the solved tension)")}))
             units = {"t_tau": "tau", "tension": "kappa/R^2", "area": "R^2", "volume": "R^3", "area_drift": "1",
                      "volume_drift": "1", "bending_energy": "kappa", "tension_energy": "kappa", "flow_sign": "1",
                      "dt_tau": "tau", "cg_iterations": "1"}
             for name in self.FRAME_VARS:
                 v = nc.createVariable(name, "f8", ("time",))
-                v.units = units[name]
-            for k, val in self.attrs.items():
+                v.setncatts(cf_unit_attrs({"units": units[name]}))
+            for k, val in {**self.attrs, **{k: v for k, v in SCALE_ATTRS.items() if k not in self.attrs}}.items():
                 nc.setncattr(k, val)
             nc.setncattr("complete", 0)
         os.replace(tmp, self.path)
@@ -208,6 +209,7 @@ class TrajectoryWriter:
         ds["time"].attrs.update(units="1/gamma_dot" if chi > 0 else "tau",
                                 long_name="time since the flow reversal, gamma_dot (t - t0)")
         ds = ds.set_coords("t_tau")
+        ds = _as_ugrid(ds)
         ds.attrs.update(extra_attrs)
         ds.attrs["complete"] = 1
         enc = {k: {"zlib": True, "complevel": 1} for k in ("node_x", "node_y", "node_z", "face_tension")}
@@ -215,6 +217,23 @@ class TrajectoryWriter:
         atomic_to_netcdf(ds, final, encoding=enc)
         self.path.unlink()
         return final
+
+
+def _as_ugrid(ds):
+    """The finished trajectory as a UGRID 1.0 mesh (mesh topology, node_lon/node_lat of the first frame, node and
+    face fields tagged) with CF units; only attributes and these new variables change, no stored value."""
+    X0 = np.stack([ds[f"node_{c}"].values[0] for c in "xyz"], axis=1)
+    ds = ds.assign(ugrid_variables(X0))
+    ds["face_node_connectivity"].attrs.update(FACE_NODE_ATTRS)
+    for name, var in ds.variables.items():
+        tags = NODE_FIELD_ATTRS if "n_node" in var.dims and name not in ("node_lon", "node_lat") else (
+            FACE_FIELD_ATTRS if "n_face" in var.dims and name != "face_node_connectivity" else {})
+        var.attrs = cf_unit_attrs({**var.attrs, **tags})
+    ds["node_lon"].attrs["long_name"] += " in the first frame"
+    ds["node_lat"].attrs["long_name"] += " in the first frame"
+    ds.attrs = {**ds.attrs, **{k: v for k, v in SCALE_ATTRS.items() if k not in ds.attrs}}
+    ds.attrs["Conventions"] = "CF-1.10 UGRID-1.0"
+    return ds
 
 
 def write_failure(path: Path, X, attrs: dict) -> None:

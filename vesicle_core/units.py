@@ -125,3 +125,39 @@ class Params:
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+
+# --------------------------------------------------------------------------- units in the datasets (CF)
+#: Units of the solver that are no UDUNITS units (in UDUNITS "R" is the roentgen and "kappa" and "tau" are
+#: unknown). A dataset variable in one of them is written with ``units = "1"`` (CF's dimensionless number) and
+#: the scale it is measured in, in this notation, in ``nondimensional_units``; the global attributes of
+#: ``SCALE_ATTRS`` define R, kappa, tau and gamma_dot. "same as <variable>" (the scale of another variable of the
+#: file) is written the same way.
+SOLVER_UNITS = ("R", "R^2", "R^3", "R/tau", "tau", "1/tau", "1/gamma_dot", "kappa", "kappa/R^2", "kappa/R^3")
+#: other spellings of the solver units met in the code, written in the files as the form of SOLVER_UNITS
+_UNIT_ALIASES = {"R2": "R^2", "R3": "R^3", "kappa R-2": "kappa/R^2", "kappa R-3": "kappa/R^3", "R tau-1": "R/tau"}
+
+#: Global attributes that state the scales of ``nondimensional_units`` (every dataset carries them).
+SCALE_ATTRS = {
+    "units_convention": ("nondimensional: a variable with units '1' and an attribute nondimensional_units = 'X' "
+                         "holds a number in units of X (R, kappa, tau, gamma_dot below); units '1' alone: a pure "
+                         "number"),
+    "length_scale": "R: radius of the sphere with the vesicle's volume, V = 4/3 pi R^3",
+    "energy_scale": "kappa: bending modulus of the membrane (tension in kappa/R^2)",
+    "viscosity_scale": "mu: viscosity of the fluid, the same inside and outside",
+    "time_scale": "tau = mu R^3 / kappa; the flow rate is gamma_dot = chi / tau, so 1/gamma_dot = tau / chi",
+}
+
+
+def cf_unit_attrs(attrs: dict) -> dict:
+    """``attrs`` of one variable with its ``units`` made a CF unit: a solver unit (``SOLVER_UNITS``, or "same as
+    <variable>") becomes units "1" with ``nondimensional_units`` naming the scale; anything else is returned
+    unchanged (so the call is idempotent)."""
+    u = attrs.get("units")
+    u = _UNIT_ALIASES.get(u, u) if isinstance(u, str) else u
+    if not isinstance(u, str) or not (u in SOLVER_UNITS or u.startswith("same as ")):
+        return attrs
+    out = dict(attrs)
+    out["units"] = "1"
+    out["nondimensional_units"] = u
+    return out

@@ -22,8 +22,6 @@ rule analyze:
     resources:
         mem_mb=ana_resource("mem_mb"),
         runtime=ana_resource("runtime"),
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle decompose {input.trajectory} -o {output.spectra} --stride {params.stride} {params.options}"
         " --quiet > {log} 2>&1"

@@ -1,4 +1,5 @@
-# The data catalog: one CSV row per dataset and an ESM-collection JSON beside it (vesicle_core.catalog).
+# The data catalog: one CSV row per dataset, the same rows typed in Parquet, and an ESM-collection JSON beside them
+# (vesicle_core.catalog).
 
 
 rule catalog:
@@ -11,9 +12,8 @@ rule catalog:
     output:
         csv="results/catalog.csv",
         json="results/catalog.json",
+        parquet="results/catalog.parquet",
     log:
         "results/logs/catalog/catalog.log",
-    conda:
-        "../envs/vesicle.yaml"
     shell:
-        "vesicle catalog {input} -o {output.csv} --json {output.json} > {log} 2>&1"
+        "vesicle catalog {input} -o {output.csv} --json {output.json} --parquet {output.parquet} > {log} 2>&1"

@@ -218,7 +218,7 @@ def all_figures():
 
 def all_targets():
     extra = [config["validation"].get("report", "docs/validation.md")] if "validation" in config else []
-    return ["results/catalog.csv", "results/catalog.json", *all_figures(), *extra]
+    return ["results/catalog.csv", "results/catalog.parquet", "results/catalog.json", *all_figures(), *extra]
 
 
 def _caching_requested(rule_name):

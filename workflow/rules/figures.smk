@@ -19,8 +19,6 @@ rule figure_dynamics:
         "results/logs/figures/dynamics_{case_id}.log",
     params:
         dpi=config["figures"]["dpi"],
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle figures dynamics {input.spectra} --theory {input.theory} --dpi {params.dpi}"
         " -o {output.png} {output.vector} > {log} 2>&1"
@@ -42,8 +40,6 @@ rule figure_wrinkles:
     params:
         dpi=config["figures"]["dpi"],
         times=option("--times", config["figures"]["map_times"]),
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle figures wrinkles {input.spectra} {params.times} --dpi {params.dpi} -o {output.png} > {log} 2>&1"
 
@@ -66,8 +62,6 @@ rule figure_views:
         time=option("--time", config["figures"]["render_time"]),
         width=config["figures"]["render_size"][0],
         height=config["figures"]["render_size"][1],
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle figures views {input.trajectory} --spectra {input.spectra} {params.time}"
         " --size {params.width} {params.height} -o {output.png} > {log} 2>&1"
@@ -91,8 +85,6 @@ rule figure_snapshots:
         times=option("--times", config["figures"]["snapshot_times"]),
         n=config["figures"]["n_snapshots"],
         frame=config["figures"]["render_size"][1] // 2,
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle figures snapshots {input.trajectory} --spectra {input.spectra} {params.times} --n {params.n}"
         " --frame-size {params.frame} {params.frame} -o {output.png} > {log} 2>&1"
@@ -114,8 +106,6 @@ rule figure_lstar:
     params:
         dpi=config["figures"]["dpi"],
         measure=config["figures"]["lstar_measure"],
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle figures lstar {input.fit} --measure {params.measure} --dpi {params.dpi}"
         " -o {output.png} {output.vector} > {log} 2>&1"

@@ -15,7 +15,5 @@ rule fit:
     resources:
         mem_mb=ana_resource("mem_mb"),
         runtime=ana_resource("runtime"),
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle fit {input.spectra} {input.theory} --confidence {params.confidence} -o {output.fit} > {log} 2>&1"

@@ -19,8 +19,6 @@ rule mesh:
         mem_mb=ana_resource("mem_mb"),
         runtime=ana_resource("runtime"),
     cache: "omit-software"
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle mesh -o {output.mesh} --family {params.family} --level {params.level}"
         " --n-vertices {params.n_vertices} --seed {params.seed} --lloyd-steps {params.lloyd_steps}"

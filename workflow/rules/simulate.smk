@@ -49,8 +49,6 @@ if SIMULATE_CACHED:
             mem_mb=sim_resource("mem_mb"),
             runtime=sim_resource("runtime"),
         cache: "omit-software"
-        conda:
-            "../envs/vesicle.yaml"
         shell:
             SIMULATE_SHELL
 
@@ -73,7 +71,5 @@ else:
             gpu=sim_resource("gpu"),
             mem_mb=sim_resource("mem_mb"),
             runtime=sim_resource("runtime"),
-        conda:
-            "../envs/vesicle.yaml"
         shell:
             SIMULATE_SHELL

@@ -23,8 +23,6 @@ rule theory:
     resources:
         mem_mb=ana_resource("mem_mb"),
         runtime=ana_resource("runtime"),
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle theory --delta {params.delta} --S {params.S} --seed {params.seed} --n-out {params.n_out}"
         " {params.options} -o {output.theory} > {log} 2>&1"

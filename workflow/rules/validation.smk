@@ -13,7 +13,5 @@ rule validation_report:
         "results/logs/validation/report.log",
     params:
         args=validation_args,
-    conda:
-        "../envs/vesicle.yaml"
     shell:
         "vesicle report {params.args} -o {output.report} > {log} 2>&1"
