@@ -246,6 +246,7 @@ class StokesSolver:
             self._gz1 = np.ascontiguousarray(self._g1[:Nh])
 
         self._steady_cache = {}  # scale -> (A, Bm)
+        self._root_cache = {}  # scale -> (A, Bm) of the square root (thermal noise)
         self._dt_cache = None  # (dt, E, Q1, Q2, Q3)
         self._ginv_dev = None
         self._u_hat = None
@@ -295,6 +296,21 @@ class StokesSolver:
             if len(self._steady_cache) >= 4:
                 self._steady_cache.clear()
             self._steady_cache[key] = sym
+        return sym
+
+    def _root_symbols(self, scale):
+        """(A, Bm) of :meth:`_apply_steady` for scale * xi (W / lam)^{1/2} (the square root of the steady symbol)."""
+        key = float(scale)
+        sym = self._root_cache.get(key)
+        if sym is None:
+            A = np.sqrt(self._inv_lam) * (key / self._N3)  # _inv_lam carries W: sqrt(W / lam), 0 at k = 0
+            if self._fused:
+                sym = (A.astype(self.dtype), (A * self._ginv).astype(self.dtype))
+            else:
+                sym = (self._to_dev(A), self._to_dev(A * self._ginv))
+            if len(self._root_cache) >= 4:
+                self._root_cache.clear()
+            self._root_cache[key] = sym
         return sym
 
     def _dt_symbols(self, dt):
@@ -389,6 +405,20 @@ class StokesSolver:
         """
         F = self._forward(f)
         A, Bm = self._steady_symbols(1.0)
+        self._apply_steady(self._view(F), A, Bm)
+        return self._inverse(F, out)
+
+    def sqrt_velocity(self, z, scale=1.0, out=None):
+        """scale * (xi W / lam)^{1/2} z = scale * xi (W / lam)^{1/2} z for a grid field z (3, N, N, N).
+
+        The symmetric square root of the steady operator of :meth:`velocity` (xi is a projector and commutes with
+        the real, even scalar W / lam, so applying this twice is ``velocity``): zero at k = 0, xi = I at the
+        Nyquist-type modes, the force filter W entering as sqrt(W). Applied to white noise it gives the
+        fluctuating-Stokes velocity of :mod:`vesicle_core.fluctuations`. One FFT round trip, like ``velocity``;
+        steady (rho -> 0) operator whatever ``rho_bar`` is.
+        """
+        F = self._forward(z)
+        A, Bm = self._root_symbols(float(scale))
         self._apply_steady(self._view(F), A, Bm)
         return self._inverse(F, out)
 
