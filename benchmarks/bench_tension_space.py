@@ -123,6 +123,86 @@ def inf_sup_table(n_vertices, l_list):
         print(f"{nv:>8} {f.shape[0]:>9} {e:>7.4f} {tri:>9.4f} " + " ".join(f"{v:>8.4f}" for v in vals), flush=True)
 
 
+def conditioning(path, frames, N):
+    """Condition number of the harmonic operator A = dt B^T D M D^T B + G / Lambda at trajectory frames (dense, K
+    Stokes solves), preconditioned by the mass alone (G / Lambda: the compliance) and by the measured diagonal in l;
+    also the measured rho_l against the frame's l."""
+    import scipy.linalg as sl
+
+    from vesicle_core.mobility import IBMMobility
+    from vesicle_core.simulate import IBMSolver, RunConfig
+    from vesicle_core.tension_harmonic import HarmonicTensionSolver
+
+    ds = xr.open_dataset(path).load()
+    faces = ds.face_node_connectivity.values.astype(np.int64)
+    X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
+    chi = float(ds.attrs["chi"])
+    cfg = RunConfig(chi=chi, N=N, scheme="inextensible", tension_space="harmonic")
+    s = IBMSolver(faces, X[0], cfg)
+    topo = s.membrane.topo
+    A0 = s.membrane.ref.face_area
+    space = HarmonicSpace(X[0], faces, A0, int(ds.attrs.get("tension_l_used", 0)) or None)
+    mob = IBMMobility(s.coupler, s.stokes)
+    lam = float(ds.attrs["Lambda_eff"])
+    for t in frames:
+        k = int(np.argmin(np.abs(ds.time.values - t)))
+        dt = float(ds.dt_tau.values[k])
+        x = s.xp.asarray(X[k])
+        _, geo = s.forces(x)
+        mob.prepare(x)
+        ts = HarmonicTensionSolver(mob, topo, space, lam)
+        ts.measure_rho(geo)
+        A = np.empty((space.K, space.K))
+        for j in range(space.K):
+            e = np.zeros(space.K)
+            e[j] = 1.0
+            A[:, j] = ts.operator(e, geo, dt)[0]
+        A = 0.5 * (A + A.T)
+        ev_c = sl.eigh(A, space.G / lam, eigvals_only=True)
+        d = 1.0 / np.sqrt(dt * ts.rho[space.l] + 1.0 / lam)
+        P = (space.G / d[:, None]) / d[None, :]
+        ev_d = sl.eigh(A, P, eigvals_only=True)
+        print(f"gdt {ds.time.values[k]:+.2f} dt {dt:.3g}: cond compliance {ev_c[-1] / ev_c[0]:.3g}, diagonal in l "
+              f"{ev_d[-1] / ev_d[0]:.3g} (eigenvalues {ev_d[0]:.3f}..{ev_d[-1]:.3f}); rho_l: "
+              + " ".join(f"{r:.3g}" for r in ts.rho), flush=True)
+
+
+def relaxation(N, n_vertices, ls, l_t_list):
+    """Relaxation rate of r = 1 + eps Y_l0 with the local area constraint (relaxation.mode_rate's setting, no flow):
+    triangle tension and the harmonic tension up to each l_t, over the theory Gamma_l (eq. 11)."""
+    from vesicle_core import relaxation as Rx
+    from vesicle_core.mobility import IBMMobility, IBMSolver
+    from vesicle_core.run_config import RunConfig
+    from vesicle_core.tension_harmonic import HarmonicTensionSolver
+
+    v, f = Rx._sphere("quasiuniform", n_vertices, 0)
+    rot = Rx._rotation()
+    n = v @ rot.T
+    cols = ", ".join(f"l_t = {L}" for L in l_t_list)
+    print(f"N = {N}, {n_vertices} vertices: rate / theory; columns: clean interface, triangle, {cols}")
+    for l in ls:
+        X = n * (1.0 + 1e-3 * Rx._y_l0(l, v[:, 2]))[:, None]
+        row = [Rx.mode_rate(l, N, n_vertices, membrane="clean").ratio,
+               Rx.mode_rate(l, N, n_vertices, membrane="inextensible").ratio]
+        cfg = RunConfig(chi=0.0, stretch=0.0, N=N, Lambda=0.0, K_volume=0.0, scheme="projection")
+        s = IBMSolver(f, X, cfg)
+        F, geo = s.forces(X)
+        mob = IBMMobility(s.coupler, s.stokes)
+        mob.prepare(X)
+        from vesicle_core.tension import dual_areas
+
+        wv = dual_areas(Mb.geometry(X, s.membrane.topo), s.membrane.topo)
+        for L in l_t_list:
+            sp = HarmonicSpace(X, f, geo.area.copy(), L)
+            ts = HarmonicTensionSolver(mob, s.membrane.topo, sp, 1e5, tol=1e-9, maxiter=2000)
+            _, _, U = ts.solve(geo, F, 0.0, np.zeros(f.shape[0]), 1.0, np.zeros(sp.K))
+            un = np.einsum("ij,ij->i", U, n)
+            Y = Rx._y_l0(l, v[:, 2])
+            amp = float(np.sum(wv * un * Y) / np.sum(wv * Y * Y))
+            row.append(-amp / 1e-3 / float(Rx.theory_rate(l, "inextensible")))
+        print(f"l = {l:>3}: " + " ".join(f"{x:7.3f}" for x in row), flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("trajectories", nargs="*")
@@ -132,9 +212,20 @@ def main():
     ap.add_argument("--n-vertices", type=int, nargs="+", default=[162, 642, 2562])
     ap.add_argument("--l-max-list", type=int, nargs="+", default=[5, 10, 15, 20, 30])
     ap.add_argument("--frames", action="store_true", help="print every frame's row")
+    ap.add_argument("--conditioning", type=float, nargs="*", default=None, metavar="GDT",
+                    help="dense condition numbers at these frames of the (one) trajectory; needs --N")
+    ap.add_argument("--N", type=int, default=64)
+    ap.add_argument("--relaxation", type=int, nargs="*", default=None, metavar="L",
+                    help="single-mode relaxation rates of these l (with --N, --n-vertices (first), --l-max-list)")
     a = ap.parse_args()
     if a.inf_sup:
         inf_sup_table(a.n_vertices, a.l_max_list)
+    if a.relaxation:
+        relaxation(a.N, a.n_vertices[0], a.relaxation, a.l_max_list)
+        return
+    if a.conditioning:
+        conditioning(a.trajectories[0], a.conditioning, a.N)
+        return
     for p in a.trajectories:
         out, r = analyse(p, a.l_max)
         if a.ref:

@@ -151,3 +151,26 @@ def test_harmonic_run_tension_in_the_space_and_smooth(tmp_path):
 
         tv = vertex_mean(s, g, topo)
         assert np.sqrt(np.mean((tv[E[:, 0]] - tv[E[:, 1]]) ** 2)) < 0.3 * np.sqrt(np.mean(tv**2))
+
+
+def test_area_ale_holds_the_triangles_without_changing_the_shape(tmp_path):
+    """mesh_ale: area moves the vertices tangentially so that the triangle areas the harmonic tension leaves free stay
+    put: the triangle strain falls to the compliance's, while the shape (second moments of the vertices, volume)
+    follows the run without it."""
+    m = Mm.make_vesicle("quasiuniform", n_vertices=642, axes=(1.0, 0.8, 1.0))
+    base = {"chi": 100.0, "N": 32, "scheme": "inextensible", "tension_space": "harmonic", "stretch": 0.4,
+            "t_end": 0.05, "output_every": 0.05}
+    out = {}
+    for ale in ("none", "area"):
+        ds = xr.open_dataset(run(m, RunConfig(**base, mesh_ale=ale), tmp_path / ale, progress=False)).load()
+        X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
+        topo = B.Topology(m.faces, m.n_vertices)
+        a0 = B.geometry(X[0], topo).area
+        strain = max(np.abs(B.geometry(x, topo).area / a0 - 1).max() for x in X)
+        Xc = X[-1] - X[-1].mean(axis=0)
+        out[ale] = (strain, Xc.T @ Xc / len(Xc), float(ds.volume.values[-1]), ds.attrs["Lambda_eff"])
+    (s0, m0, v0, _), (s1, m1, v1, lam) = out["none"], out["area"]
+    assert s1 < 0.3 * s0
+    assert s1 < 5e-3
+    np.testing.assert_allclose(m1, m0, atol=5e-4 * np.abs(m0).max())
+    assert abs(v1 / v0 - 1) < 1e-3

@@ -149,6 +149,7 @@ class Inextensible(Integrator):
             local = LocalPreconditioner(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff,
                                         refresh=cfg.projection_refresh)
         self.space = None
+        self.ale = None
         if cfg.tension_space == "harmonic":
             self.tension = self._harmonic_solver()
         else:
@@ -167,6 +168,10 @@ class Inextensible(Integrator):
         faces = be.asnumpy(mem.topo.faces)
         self.space = HarmonicSpace(be.asnumpy(self.solver.xp.asarray(self.X0)), faces, be.asnumpy(mem.ref.face_area),
                                    cfg.tension_l_max)
+        if cfg.mesh_ale == "area":
+            from .tension_harmonic import AreaALE
+
+            self.ale = AreaALE(self.space, cfg.h)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
                                      maxiter=cfg.cg_maxiter)
 
@@ -214,6 +219,8 @@ class Inextensible(Integrator):
         state.sigma = sigma
         state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
         self.iterations.append(self.tension.last.iterations)
+        if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
+            return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area)
         return U * dt
 
     def face_tension(self, state, geo):
@@ -234,8 +241,12 @@ class Inextensible(Integrator):
 
     def _precond_stats(self) -> dict:
         if self.space is not None:
-            return {"tension_l_used": int(self.space.l_max), "tension_modes": int(self.space.K),
-                    "tension_rho_refreshes": int(self.tension.refreshes)}
+            out = {"tension_l_used": int(self.space.l_max), "tension_modes": int(self.space.K),
+                   "tension_rho_refreshes": int(self.tension.refreshes)}
+            if self.ale is not None:  # this call's
+                out.update(ale_lsqr_iterations_mean=self.ale.iterations / max(self.ale.calls, 1),
+                           ale_s=self.ale.seconds)
+            return out
         local = self.tension.local
         if local is None:
             return {}

@@ -316,6 +316,14 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         nullable=True,
     ),
     Parameter(
+        "mesh_ale",
+        "none",
+        "str",
+        "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
+        "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain",
+        choices=("none", "area"),
+    ),
+    Parameter(
         "dt_growth",
         0.1,
         "float",

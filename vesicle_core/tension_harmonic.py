@@ -241,3 +241,66 @@ def inf_sup(X, faces, B=None, W=None):
     Gm = np.diag(W) if B is None else B.T @ (W[:, None] * B)
     lam = sl.eigh(K.T @ K, Gm, eigvals_only=True, subset_by_index=[0, 0])
     return float(np.sqrt(max(lam[0], 0.0)))
+
+
+# --------------------------------------------------------------------------- tangential (ALE) mesh velocity
+class AreaALE:
+    """A tangential vertex displacement that holds the triangle areas the harmonic tension leaves free.
+
+    The harmonic tension holds B^T (A - A^0), the projection of the area change on the space; the rest of every
+    triangle's area change (the triangle scale) is not held, and the vertices then slide tangentially on the mesh
+    scale. This adds to the step's displacement dX a tangential w (w . n_i = 0 at each vertex, n_i its normal)
+    that makes the triangle areas after the step A^0 plus the space's part:
+
+        min_w |W^(-1/2) (D w - y)|^2 + damp^2 |w|^2 / h^2,   y = -(I - W B G^-1 B^T)(D dX + A - A^0),
+
+    by LSQR (sparse D, no Stokes solve). y has no component the tension holds (B^T y = 0), and a tangential w
+    changes the shape only at second order, so the membrane's motion is unchanged; what changes is which mesh
+    point sits where (an arbitrary Lagrangian-Eulerian mesh). ``damp`` keeps w small where no vertex motion
+    reaches an area pattern (the triangle space's near-null modes)."""
+
+    def __init__(self, space: HarmonicSpace, h, damp=1e-2, iter_lim=200):
+        self.space = space
+        self.h = float(h)
+        self.damp = float(damp)
+        self.iter_lim = int(iter_lim)
+        self.iterations = 0
+        self.calls = 0
+        self.seconds = 0.0
+
+    def __call__(self, X, geo, topo, dX, area_error):
+        import time
+
+        import scipy.sparse as sps
+        import scipy.sparse.linalg as spla
+
+        from .harmonics import vertex_normals
+        from .tension import face_D_matrix
+
+        t0 = time.perf_counter()
+        sp = self.space
+        Xn = np.asarray(X.get() if hasattr(X, "get") else X, float)
+        faces = np.asarray(topo.faces.get() if hasattr(topo.faces, "get") else topo.faces)
+        dXn = np.asarray(dX.get() if hasattr(dX, "get") else dX, float)
+        err = np.asarray(area_error.get() if hasattr(area_error, "get") else area_error, float)
+        D = face_D_matrix(geo, topo)  # (F, 3V)
+        x = D @ dXn.ravel() + err
+        y = -(x - sp.W * (sp.B @ sp.G_solve(sp.B.T @ x)))
+        n = vertex_normals(Xn, faces)
+        a = np.where(np.abs(n[:, 0:1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+        t1 = np.cross(n, a)
+        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+        t2 = np.cross(n, t1)
+        V = Xn.shape[0]
+        rows = np.concatenate([3 * np.arange(V)[:, None] + np.arange(3)[None, :]] * 2, axis=1).ravel()
+        iv = 2 * np.arange(V)[:, None]
+        cols = np.concatenate([np.repeat(iv, 3, 1), np.repeat(iv + 1, 3, 1)], axis=1).ravel()
+        T = sps.csr_matrix((np.concatenate([t1, t2], axis=1).ravel(), (rows, cols)), shape=(3 * V, 2 * V))
+        s = 1.0 / np.sqrt(sp.W)
+        A = sps.diags(s) @ (D @ T) * self.h  # unknowns in units of h
+        out = spla.lsqr(A, s * y, damp=self.damp, atol=1e-8, btol=1e-8, iter_lim=self.iter_lim)
+        w = (T @ (out[0] * self.h)).reshape(V, 3)
+        self.iterations += int(out[2])
+        self.calls += 1
+        self.seconds += time.perf_counter() - t0
+        return topo.xp.asarray(w)
