@@ -68,7 +68,7 @@ def default_l_max(X0, faces) -> int:
 class HarmonicSpace:
     """The tension space: B (F, K), the l of each column, the mass G = B^T W B and its Cholesky factor."""
 
-    def __init__(self, X0, faces, A0, l_max=None):
+    def __init__(self, X0, faces, A0, l_max=None, check=True):
         from .harmonics import _angles, volume_centroid
 
         X0 = np.asarray(X0, dtype=float)
@@ -76,6 +76,13 @@ class HarmonicSpace:
         self.l_max = default_l_max(X0, faces) if l_max is None else int(l_max)
         if self.l_max < 0:
             raise ConfigError(f"tension_l_max must be >= 0, got {self.l_max}")
+        from .harmonics import resolvable_l_max
+
+        l_res = resolvable_l_max(X0, faces)
+        if check and self.l_max > l_res:
+            raise ConfigError(f"tension_l_max = {self.l_max} exceeds the mesh's resolvable l {l_res} (pi R / mean "
+                              f"edge): the inf-sup constant collapses there (0.48 against 1.95 at 162 vertices, "
+                              f"docs/solver.md)")
         c0 = volume_centroid(X0, faces)
         u = X0 - c0
         u /= np.linalg.norm(u, axis=1, keepdims=True)
@@ -233,10 +240,10 @@ def inf_sup(X, faces, B=None, W=None):
 
     topo = Mb.Topology(faces, X.shape[0])
     geo = Mb.geometry(np.asarray(X, float), topo)
-    D = face_D_matrix(geo, topo).toarray()  # (F, 3V)
+    D = face_D_matrix(geo, topo)  # (F, 3V), sparse
     Vm = np.repeat(dual_areas(geo, topo), 3)
     W = geo.area if W is None else np.asarray(W, float)
-    DB = D.T if B is None else D.T @ B  # (3V, K)
+    DB = D.T.toarray() if B is None else np.asarray(D.T @ B)  # (3V, K)
     K = DB / np.sqrt(Vm)[:, None]
     Gm = np.diag(W) if B is None else B.T @ (W[:, None] * B)
     lam = sl.eigh(K.T @ K, Gm, eigvals_only=True, subset_by_index=[0, 0])
