@@ -266,7 +266,7 @@ class AreaALE:
     point sits where (an arbitrary Lagrangian-Eulerian mesh). ``damp`` keeps w small where no vertex motion
     reaches an area pattern (the triangle space's near-null modes)."""
 
-    def __init__(self, space: HarmonicSpace, h, damp=1e-2, iter_lim=200):
+    def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=400):
         self.space = space
         self.h = float(h)
         self.damp = float(damp)
