@@ -245,7 +245,7 @@ class Inextensible(Integrator):
                    "tension_rho_refreshes": int(self.tension.refreshes)}
             if self.ale is not None:  # this call's
                 out.update(ale_lsqr_iterations_mean=self.ale.iterations / max(self.ale.calls, 1),
-                           ale_s=self.ale.seconds)
+                           ale_s=self.ale.seconds, ale_capped_steps=self.ale.capped)
             return out
         local = self.tension.local
         if local is None:

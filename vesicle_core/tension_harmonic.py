@@ -266,8 +266,10 @@ class AreaALE:
     point sits where (an arbitrary Lagrangian-Eulerian mesh). ``damp`` keeps w small where no vertex motion
     reaches an area pattern (the triangle space's near-null modes)."""
 
-    def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=400):
+    def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=400, max_step=0.05):
         self.space = space
+        self.max_step = float(max_step)  # largest |w| per step, in h: the rest is left to the next steps
+        self.capped = 0
         self.h = float(h)
         self.damp = float(damp)
         self.iter_lim = int(iter_lim)
@@ -307,6 +309,10 @@ class AreaALE:
         A = sps.diags(s) @ (D @ T) * self.h  # unknowns in units of h
         out = spla.lsqr(A, s * y, damp=self.damp, atol=1e-8, btol=1e-8, iter_lim=self.iter_lim)
         w = (T @ (out[0] * self.h)).reshape(V, 3)
+        wmax = float(np.sqrt((w**2).sum(axis=1)).max())
+        if wmax > self.max_step * self.h:  # a large tangential step would fold triangles on a wrinkled surface
+            w *= self.max_step * self.h / wmax
+            self.capped += 1
         self.iterations += int(out[2])
         self.calls += 1
         self.seconds += time.perf_counter() - t0
