@@ -13,6 +13,8 @@ time-integrated displacement of eq. (29) (finite Re).
   constraint (:mod:`vesicle_core.tension`); no penalty stiffness, so the step follows the physics: the
   fastest wrinkle growth of the perturbation analysis, the bending and tension stability limits and the
   background flow.
+  ``tension_space: harmonic`` carries the tension in real spherical harmonics instead
+  (:mod:`vesicle_core.tension_harmonic`), optionally with a tangential mesh motion (``mesh_ale: area``).
 """
 
 from __future__ import annotations
