@@ -215,8 +215,12 @@ class Inextensible(Integrator):
         if self.space is None:
             sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt, guess)
         else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
-            _, sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt,
-                                             self.space.fit(self.solver.be.asnumpy(guess)))
+            ts = self.tension
+            if ts.rho is None and state.tension_rho is not None:  # resumed: the measurement of the first call
+                ts.rho, ts._uses = np.asarray(state.tension_rho, dtype=float), int(state.tension_rho_age)
+            _, sigma, U = ts.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt,
+                                   self.space.fit(self.solver.be.asnumpy(guess)), seed=state.step)
+            state.tension_rho, state.tension_rho_age = ts.rho, ts._uses
         state.sigma_prev = state.sigma
         state.sigma = sigma
         state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)

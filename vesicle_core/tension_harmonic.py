@@ -158,12 +158,14 @@ class HarmonicTensionSolver:
         rate, q = self.apply_rate(c, geo)
         return dt * rate + self.space.G @ c / self.Lambda, q
 
-    def measure_rho(self, geo):
-        """rho_l = v.(B^T D M D^T B) v / v.G v for a random v in the span of each l's harmonics (l_t + 1 solves)."""
+    def measure_rho(self, geo, seed=None):
+        """rho_l = v.(B^T D M D^T B) v / v.G v for a random v in the span of each l's harmonics (l_t + 1 solves);
+        ``seed``: the draw (the step number in runs, so that a resumed run measures what the first call did)."""
         sp = self.space
+        rng = self.rng if seed is None else np.random.default_rng(seed)
         rho = np.empty(sp.l_max + 1)
         for l in range(sp.l_max + 1):
-            v = np.where(sp.l == l, self.rng.standard_normal(sp.K), 0.0)
+            v = np.where(sp.l == l, rng.standard_normal(sp.K), 0.0)
             rate, _ = self.apply_rate(v, geo)
             rho[l] = float(v @ rate) / float(v @ (sp.G @ v))
         self.extra_solves += sp.l_max + 1
@@ -181,12 +183,12 @@ class HarmonicTensionSolver:
         return math.sqrt(max(float(r @ self.space.G_solve(r)), 0.0) / self.area)
 
     # ------------------------------------------------------------------ the solve
-    def solve(self, geo, F, u_inf, area_error, dt, c0):
+    def solve(self, geo, F, u_inf, area_error, dt, c0, seed=None):
         """Coefficients c, per-triangle tension B c and velocity U (V, 3) of one step; the mobility must be prepared
         at geo's positions. Raises NumericalInstability when PCG does not converge."""
         sp = self.space
         if self.rho is None or self._uses >= self.refresh:
-            self.measure_rho(geo)
+            self.measure_rho(geo, seed)
         self._uses += 1
         c = np.array(c0, dtype=float, copy=True)
         U = self.mobility.apply(F - face_DT(self._xp_faces(c), geo, self.topo)) + u_inf
