@@ -1,7 +1,8 @@
 """Where a step's time goes: cProfile of the first steps of the S = 2224 inextensible run, by stage.
 
 Run by hand:
-    python benchmarks/bench_profile.py [N] [N_VERTICES] [STEPS]        # default 256 10242 15
+    python benchmarks/bench_profile.py [N] [N_VERTICES] [STEPS] [KEY=VALUE ...]   # default 256 10242 15
+    e.g. python benchmarks/bench_profile.py 128 2562 60 tension_space=harmonic mesh_ale=area
 
 Stages (internal time of the functions): FFT (the backend's r2c/c2r), the spectral Stokes projection
 (stokes.py), spreading and interpolation (ibm.py and the scatter/gather NumPy calls they make), stencils, membrane
@@ -38,13 +39,17 @@ def stage(path, name):
         return "membrane forces and geometry"
     if path.endswith("tension.py"):
         return "tension solve (CG vector work)"
+    if "lsqr" in path or "lsqr" in name or path.endswith("scipy/sparse/_compressed.py"):
+        return "mesh_ale (LSQR, sparse products)"
+    if path.endswith("tension_harmonic.py") or "cho_solve" in name or "potrs" in name:
+        return "harmonic tension (basis products, G solves)"
     return None
 
 
-def main(N=256, n_vertices=10242, steps=15):
+def main(N=256, n_vertices=10242, steps=15, **extra):
     mesh = M.make_vesicle("quasiuniform", n_vertices=n_vertices, axes=(1.0, 0.8, 1.0))
     cfg = RunConfig(chi=267.8, N=N, stretch=1.0, t_end=1.0, output_every=0.02, scheme="inextensible",
-                    dtype="float32", fft_workers=1)
+                    dtype="float32", fft_workers=1, **extra)
     pr = cProfile.Profile()
     t = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:
@@ -56,10 +61,10 @@ def main(N=256, n_vertices=10242, steps=15):
     for (path, _, name), (_, _, tt, _, _) in pstats.Stats(pr).stats.items():
         key = stage(path.replace("\\", "/"), name) or "other (setup, output, Python)"
         tot[key] = tot.get(key, 0.0) + tt
-    print(f"N = {N}, {n_vertices} vertices, {steps} steps, wall {wall:.1f} s")
+    print(f"N = {N}, {n_vertices} vertices, {steps} steps, {extra or ''}, wall {wall:.1f} s")
     for k, v in sorted(tot.items(), key=lambda kv: -kv[1]):
         print(f"{k:>34}: {v:7.1f} s  {v / wall:6.1%}")
 
 
 if __name__ == "__main__":
-    main(*(int(x) for x in sys.argv[1:4]))
+    main(*(int(x) for x in sys.argv[1:4]), **dict(kv.split("=", 1) for kv in sys.argv[4:]))

@@ -13,6 +13,8 @@ time-integrated displacement of eq. (29) (finite Re).
   constraint (:mod:`vesicle_core.tension`); no penalty stiffness, so the step follows the physics: the
   fastest wrinkle growth of the perturbation analysis, the bending and tension stability limits and the
   background flow.
+  ``tension_space: harmonic`` carries the tension in real spherical harmonics instead
+  (:mod:`vesicle_core.tension_harmonic`), optionally with a tangential mesh motion (``mesh_ale: area``).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import math
 
 import numpy as np
 
+from .errors import ConfigError
 from .flow import background_velocity
 from .kernels import DEFAULT_KERNEL
 
@@ -32,10 +35,11 @@ class Integrator(abc.ABC):
     name = "base"
     adaptive = False
 
-    def __init__(self, solver, dt: float):
+    def __init__(self, solver, dt: float, X0=None):
         self.solver = solver
         self.cfg = solver.cfg
         self.dt = dt
+        self.X0 = X0  # the reference mesh's vertices (material coordinates of tension_space: harmonic)
 
     def next_dt(self, state, geo) -> float:
         return self.dt
@@ -132,11 +136,11 @@ class Inextensible(Integrator):
     name = "inextensible"
     adaptive = True
 
-    def __init__(self, solver, dt_bending: float):
+    def __init__(self, solver, dt_bending: float, X0=None):
         from .mobility import IBMMobility
         from .tension import TensionSolver
 
-        super().__init__(solver, dt_bending)
+        super().__init__(solver, dt_bending, X0)
         cfg = self.cfg
         self.dt_bending = dt_bending  # stability limit of the bending force (power iteration), tau
         self.mobility = IBMMobility(solver.coupler, solver.stokes, solver._grid_buf)
@@ -147,10 +151,32 @@ class Inextensible(Integrator):
 
             local = LocalPreconditioner(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff,
                                         refresh=cfg.projection_refresh)
-        self.tension = TensionSolver(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff, tol=cfg.cg_tol,
-                                     maxiter=cfg.cg_maxiter, cells="face", local=local)
+        self.space = None
+        self.ale = None
+        if cfg.tension_space == "harmonic":
+            self.tension = self._harmonic_solver()
+        else:
+            self.tension = TensionSolver(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff, tol=cfg.cg_tol,
+                                         maxiter=cfg.cg_maxiter, cells="face", local=local)
         self.l_grid = math.ceil(math.pi / cfg.h)  # the shortest wave the grid can carry, in R
         self.iterations = []
+
+    def _harmonic_solver(self):
+        from .tension_harmonic import HarmonicSpace, HarmonicTensionSolver
+
+        cfg, mem, be = self.cfg, self.solver.membrane, self.solver.be
+        if self.X0 is None:
+            raise ConfigError("tension_space 'harmonic' needs the reference mesh's vertices (X0) for its material "
+                              "coordinates")
+        faces = be.asnumpy(mem.topo.faces)
+        self.space = HarmonicSpace(be.asnumpy(self.solver.xp.asarray(self.X0)), faces, be.asnumpy(mem.ref.face_area),
+                                   cfg.tension_l_max)
+        if cfg.mesh_ale == "area":
+            from .tension_harmonic import AreaALE
+
+            self.ale = AreaALE(self.space, cfg.h)
+        return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
+                                     maxiter=cfg.cg_maxiter)
 
     def sigma_mean(self, state, geo) -> float:
         if state.sigma is None:
@@ -187,11 +213,21 @@ class Inextensible(Integrator):
             h_a, h_b = state.dt_steps
             guess = state.sigma + (h_b / h_a) * (state.sigma - state.sigma_prev)
         u_inf = background_velocity(X, rate) if cfg.chi > 0 else 0.0
-        sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt, guess)
+        if self.space is None:
+            sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt, guess)
+        else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
+            ts = self.tension
+            if ts.rho is None and state.tension_rho is not None:  # resumed: the measurement of the first call
+                ts.rho, ts._uses = np.asarray(state.tension_rho, dtype=float), int(state.tension_rho_age)
+            _, sigma, U = ts.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt,
+                                   self.space.fit(self.solver.be.asnumpy(guess)), seed=state.step)
+            state.tension_rho, state.tension_rho_age = ts.rho, ts._uses
         state.sigma_prev = state.sigma
         state.sigma = sigma
         state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
         self.iterations.append(self.tension.last.iterations)
+        if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
+            return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area)
         return U * dt
 
     def face_tension(self, state, geo):
@@ -205,11 +241,19 @@ class Inextensible(Integrator):
             return {}
         return {"cg_iterations_median": float(np.median(it)), "cg_iterations_mean": float(it.mean()),
                 "cg_iterations_max": int(it.max()),
-                "stokes_solves": int(it.size + it.sum()),  # one for the warm-start velocity, one per iteration
+                # one for the warm-start velocity, one per iteration (+ the harmonic space's rho_l measurements)
+                "stokes_solves": int(it.size + it.sum() + getattr(self.tension, "extra_solves", 0)),
                 "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0)),  # local -> compliance repeats (this call)
                 **self._precond_stats()}
 
     def _precond_stats(self) -> dict:
+        if self.space is not None:
+            out = {"tension_l_used": int(self.space.l_max), "tension_modes": int(self.space.K),
+                   "tension_rho_refreshes": int(self.tension.refreshes)}
+            if self.ale is not None:  # this call's
+                out.update(ale_lsqr_iterations_mean=self.ale.iterations / max(self.ale.calls, 1),
+                           ale_s=self.ale.seconds, ale_capped_steps=self.ale.capped)
+            return out
         local = self.tension.local
         if local is None:
             return {}

@@ -317,6 +317,35 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         choices=("compliance", "local"),
     ),
     Parameter(
+        "tension_space",
+        "triangle",
+        "str",
+        "inextensible: the tension's space. triangle: one tension per triangle, every triangle's area held "
+        "(near-null checkerboard modes); harmonic: a Galerkin tension in real spherical harmonics up to "
+        "tension_l_max on the reference mesh's sphere coordinates, the projection of the area change on that "
+        "space held, CG preconditioned by the measured area rate per l (docs/solver.md, A harmonic tension)",
+        choices=("triangle", "harmonic"),
+    ),
+    Parameter(
+        "tension_l_max",
+        None,
+        "int",
+        "tension_space harmonic: highest l of the tension; null = half the mesh's resolvable l "
+        "(pi R / mean edge / 2: 10 at 642 vertices, 20 at 2562, 40 at 10242)",
+        "",
+        0,
+        200,
+        nullable=True,
+    ),
+    Parameter(
+        "mesh_ale",
+        "none",
+        "str",
+        "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
+        "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain",
+        choices=("none", "area"),
+    ),
+    Parameter(
         "dt_growth",
         0.1,
         "float",

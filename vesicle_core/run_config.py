@@ -26,6 +26,12 @@ class _RunConfigRules:
             object.__setattr__(self, p.name, p.check(getattr(self, p.name)))
         if self.scheme == "inextensible" and self.Re > 0:
             raise ConfigError(f"scheme 'inextensible' solves steady Stokes (Re = 0); got Re = {self.Re:g}")
+        if self.tension_space == "harmonic" and self.cg_precond == "local":
+            raise ConfigError("tension_space 'harmonic' has its own preconditioner (the measured area rate per l); "
+                              "cg_precond 'local' applies to tension_space 'triangle' only")
+        if self.mesh_ale != "none" and self.tension_space != "harmonic":
+            raise ConfigError("mesh_ale 'area' applies to tension_space 'harmonic' only (the triangle tension holds "
+                              "every triangle's area itself)")
         if self.chi == 0 and self.stretch > 0:
             raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
         if self.seed_spectrum != "mesh" and self.stationary_tol > 0:

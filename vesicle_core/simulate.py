@@ -316,7 +316,7 @@ class _Run:
         self.state, self.resumed = _start(mesh, cfg, solver, outdir, self.seed_shape)
         state = self.state
         self.dt = dt = state.dt
-        self.integ = integ = INTEGRATORS[cfg.scheme](solver, dt)
+        self.integ = integ = INTEGRATORS[cfg.scheme](solver, dt, X0=mesh.vertices)
         self.adaptive = integ.adaptive and isinstance(cfg.dt, str)  # a fixed dt overrides an adaptive scheme
         integ.adaptive = self.adaptive
         if state.cg_iterations is None:

@@ -56,6 +56,8 @@ class State:
     cg_iterations: list = None  # per step (inextensible)
     seed_l_max: int = -1  # highest l of the thermal seed put on at the reversal (-1: none)
     wall_s: float = 0.0  # wall time of the earlier calls of a resumed run (s)
+    tension_rho: object = None  # tension_space harmonic: the measured area rate per l of the last refresh
+    tension_rho_age: int = 0  # steps since that refresh
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -67,6 +69,8 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
     for name in ("sigma", "sigma_prev"):
         if getattr(state, name) is not None:
             data[name] = (("n_face",), be.asnumpy(getattr(state, name)))
+    if state.tension_rho is not None:
+        data["tension_rho"] = (("n_l",), np.asarray(state.tension_rho, dtype=float))
     if state.cg_iterations:
         data["cg_iterations"] = (("n_step",), np.asarray(state.cg_iterations, dtype=np.int32))
     if u_hat is not None:
@@ -78,6 +82,7 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
         "n_frames": state.n_frames, "next_output": state.next_output, "dt": state.dt,
         "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
         "next_output_t": state.next_output_t, "seed_l_max": state.seed_l_max, "wall_s": state.wall_s,
+        "tension_rho_age": state.tension_rho_age,
     }
     if state.dt_steps:  # netCDF attributes cannot be empty
         attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
@@ -104,6 +109,8 @@ def load_checkpoint(path: Path, xp):
         wall_s=float(a.get("wall_s", math.nan)),  # unknown for checkpoints written before it was recorded
         dt_steps=tuple(np.atleast_1d(a.get("dt_steps", np.zeros(0))).tolist()),
         cg_iterations=[int(v) for v in ds["cg_iterations"].values] if "cg_iterations" in ds else [],
+        tension_rho=ds["tension_rho"].values.copy() if "tension_rho" in ds else None,
+        tension_rho_age=int(a.get("tension_rho_age", 0)),
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
