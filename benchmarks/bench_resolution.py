@@ -8,7 +8,7 @@ regularised Stokeslet (vesicle_core.stokeslet): hydrodynamic radius, translation
 mobility over sub-grid shifts, and the pair mobility against the periodic Oseen / RPY tensors at 2-10 h.
 
     python benchmarks/bench_resolution.py [--Ns 64 96 128 192] [--kernels peskin4] [--couplings kernel sharp:0.01]
-        [--edges 1 2] [--inextensible] [--json out.json]
+        [--edges 1 2] [--inextensible [--tension-space harmonic] [--cg-tol 1e-6]] [--json out.json]
 
 ``sharp:F`` is the sharp coupling with floor F; ``sharp`` alone takes the parameter's default. Cost on 2 cores: one
 Stokes solve per (N, l) (clean interface) plus the meshes (a 21,000-vertex quasi-uniform mesh, edge h at N = 192,
@@ -36,7 +36,8 @@ def parse_coupling(text):
     return name, (float(floor) if floor else (SHARP_FLOOR if name == "sharp" else None))
 
 
-def main(Ns, kernels, couplings, edges, membrane="clean", tol=0.05, stokeslet=True, cg_tol=1e-9):
+def main(Ns, kernels, couplings, edges, membrane="clean", tol=0.05, stokeslet=True, cg_tol=1e-9,
+         tension_space="triangle"):
     out = []
     for kernel in kernels:
         for coupling, floor in couplings:
@@ -46,6 +47,7 @@ def main(Ns, kernels, couplings, edges, membrane="clean", tol=0.05, stokeslet=Tr
                 t0 = time.perf_counter()
                 tab = resolution_table(Ns, LS, membrane=membrane, tol=tol, kernel=kernel, coupling=coupling,
                                        sharp_floor=floor, edge=edge, box_correct=True, cg_tol=cg_tol,
+                                       tension_space=tension_space,
                                        progress=lambda s: print("   ", s, flush=True))
                 for N, row in tab.items():
                     out.append({"kernel": kernel, "coupling": coupling, "floor": floor, "edge_h": edge, "N": N,
@@ -78,10 +80,13 @@ if __name__ == "__main__":
     ap.add_argument("--no-stokeslet", action="store_true", help="skip the regularised-Stokeslet properties")
     ap.add_argument("--cg-tol", type=float, default=1e-9,
                     help="inextensible: tension CG tolerance (1e-6 is ample: the start residual is ~3e-3)")
+    ap.add_argument("--tension-space", default="triangle", choices=("triangle", "harmonic"),
+                    help="inextensible: the tension space (run parameter tension_space)")
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args()
     rows = main(a.Ns, a.kernels, [parse_coupling(c) for c in a.couplings], a.edges,
-                "inextensible" if a.inextensible else "clean", stokeslet=not a.no_stokeslet, cg_tol=a.cg_tol)
+                "inextensible" if a.inextensible else "clean", stokeslet=not a.no_stokeslet, cg_tol=a.cg_tol,
+                tension_space=a.tension_space)
     print(markdown(rows))
     if a.json:
         with open(a.json, "w") as fh:

@@ -170,36 +170,15 @@ def conditioning(path, frames, N):
 def relaxation(N, n_vertices, ls, l_t_list):
     """Relaxation rate of r = 1 + eps Y_l0 with the local area constraint (relaxation.mode_rate's setting, no flow):
     triangle tension and the harmonic tension up to each l_t, over the theory Gamma_l (eq. 11)."""
-    from vesicle_core import relaxation as Rx
-    from vesicle_core.mobility import IBMMobility, IBMSolver
-    from vesicle_core.run_config import RunConfig
-    from vesicle_core.tension_harmonic import HarmonicTensionSolver
+    from vesicle_core.relaxation import mode_rate
 
-    v, f = Rx._sphere("quasiuniform", n_vertices, 0)
-    rot = Rx._rotation()
-    n = v @ rot.T
     cols = ", ".join(f"l_t = {L}" for L in l_t_list)
     print(f"N = {N}, {n_vertices} vertices: rate / theory; columns: clean interface, triangle, {cols}")
     for l in ls:
-        X = n * (1.0 + 1e-3 * Rx._y_l0(l, v[:, 2]))[:, None]
-        row = [Rx.mode_rate(l, N, n_vertices, membrane="clean").ratio,
-               Rx.mode_rate(l, N, n_vertices, membrane="inextensible").ratio]
-        cfg = RunConfig(chi=0.0, stretch=0.0, N=N, Lambda=0.0, K_volume=0.0, scheme="projection")
-        s = IBMSolver(f, X, cfg)
-        F, geo = s.forces(X)
-        mob = IBMMobility(s.coupler, s.stokes)
-        mob.prepare(X)
-        from vesicle_core.tension import dual_areas
-
-        wv = dual_areas(Mb.geometry(X, s.membrane.topo), s.membrane.topo)
-        for L in l_t_list:
-            sp = HarmonicSpace(X, f, geo.area.copy(), L)
-            ts = HarmonicTensionSolver(mob, s.membrane.topo, sp, 1e5, tol=1e-9, maxiter=2000)
-            _, _, U = ts.solve(geo, F, 0.0, np.zeros(f.shape[0]), 1.0, np.zeros(sp.K))
-            un = np.einsum("ij,ij->i", U, n)
-            Y = Rx._y_l0(l, v[:, 2])
-            amp = float(np.sum(wv * un * Y) / np.sum(wv * Y * Y))
-            row.append(-amp / 1e-3 / float(Rx.theory_rate(l, "inextensible")))
+        row = [mode_rate(l, N, n_vertices, membrane="clean").ratio,
+               mode_rate(l, N, n_vertices, membrane="inextensible").ratio]
+        row += [mode_rate(l, N, n_vertices, membrane="inextensible", tension_space="harmonic", tension_l_max=L).ratio
+                for L in l_t_list]
         print(f"l = {l:>3}: " + " ".join(f"{x:7.3f}" for x in row), flush=True)
 
 

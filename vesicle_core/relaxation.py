@@ -70,13 +70,15 @@ class RateResult:
 
 def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3, family="quasiuniform",
               seed=0, backend="numpy", Lambda=1e5, kernel=DEFAULT_KERNEL, coupling="kernel",
-              sharp_floor=None, cg_tol=1e-9) -> RateResult:
+              sharp_floor=None, cg_tol=1e-9, tension_space="triangle", tension_l_max=None) -> RateResult:
     """IBM relaxation rate of r = 1 + eps Y_l0 on an N^3 grid of edge L (one Stokes solve, or a tension solve).
 
     The mesh axis is tilted away from the grid axes (a fixed rotation), so the mode does not line up with
     the grid. ``sigma0``: a uniform tension added as the force sigma0 H (both membranes). ``coupling`` and
     ``sharp_floor``: the run parameters of those names (None: the parameter's default). ``cg_tol``: the tension
     solve's tolerance (inextensible; rms area strain of the residual, against ~3e-3 at the start for eps = 1e-3).
+    ``tension_space``, ``tension_l_max``: the inextensible membrane's tension, one per triangle or the harmonic one
+    (:mod:`vesicle_core.tension_harmonic`; the run parameters of those names).
     """
     from . import membrane as B
     from .mobility import IBMSolver
@@ -105,9 +107,18 @@ def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3
 
         mob = IBMMobility(solver.coupler, solver.stokes)
         mob.prepare(Xd)
-        ts = TensionSolver(mob, solver.membrane.topo, geo.area.copy(), Lambda, tol=cg_tol, maxiter=2000)
         zero = xp.zeros(geo.area.shape[0])
-        _, U = ts.solve(geo, F, 0.0, zero, 1.0, zero)  # dt = 1: the velocity of the constrained membrane
+        if tension_space == "harmonic":
+            from .tension_harmonic import HarmonicSpace, HarmonicTensionSolver
+
+            sp = HarmonicSpace(X, f, solver.be.asnumpy(geo.area).copy(), tension_l_max)
+            ts = HarmonicTensionSolver(mob, solver.membrane.topo, sp, Lambda, tol=cg_tol, maxiter=2000)
+            _, _, U = ts.solve(geo, F, 0.0, zero, 1.0, np.zeros(sp.K))  # dt = 1: the constrained velocity
+        elif tension_space == "triangle":
+            ts = TensionSolver(mob, solver.membrane.topo, geo.area.copy(), Lambda, tol=cg_tol, maxiter=2000)
+            _, U = ts.solve(geo, F, 0.0, zero, 1.0, zero)  # dt = 1: the velocity of the constrained membrane
+        else:
+            raise ConfigError(f"tension_space must be 'triangle' or 'harmonic', got {tension_space!r}")
     else:
         raise ConfigError(f"membrane must be 'clean' or 'inextensible', got {membrane!r}")
     U = solver.be.asnumpy(U)
@@ -163,16 +174,17 @@ def box_factor_l2(N, n_vertices, L=5.0, **kw) -> float:
 
 def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.05, box_factor=None,
                      kernel=DEFAULT_KERNEL, coupling="kernel", sharp_floor=None, edge=2.0, box_correct=False,
-                     lh_max=2.0, progress=None, cg_tol=1e-9):
+                     lh_max=2.0, progress=None, cg_tol=1e-9, tension_space="triangle"):
     """Rate ratios IBM/theory per (N, l) and l_res per N, for one kernel and coupling.
 
     ``n_vertices_of(N)``: the mesh for each grid (default: mean edge ``edge`` h; 2h is the project's rule for the
     kernel coupling, h the sharp coupling's). ``box_factor[l]`` divides out the periodic-box effect; or
     ``box_correct=True`` measures it for l = 2 (:func:`box_factor_l2`, two more solves per grid). Modes with
     l h > ``lh_max`` are skipped (far past any kernel's resolution). ``progress``: called with a line per grid.
-    ``cg_tol``: the tension solve's tolerance (inextensible membrane).
+    ``cg_tol``, ``tension_space``: the tension solve's tolerance and space (inextensible membrane).
     """
-    kw = {"kernel": kernel, "coupling": coupling, "sharp_floor": sharp_floor, "cg_tol": cg_tol}
+    kw = {"kernel": kernel, "coupling": coupling, "sharp_floor": sharp_floor, "cg_tol": cg_tol,
+          "tension_space": tension_space}
     out = {}
     for N in Ns:
         nv = n_vertices_of(N) if n_vertices_of else default_vertices(N, L, edge)
