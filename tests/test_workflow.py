@@ -174,7 +174,7 @@ def test_config_files_satisfy_schema_and_solver():
     params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"
     run_props = yaml.safe_load(params_schema.read_text())["$defs"]["run"]["properties"]
     assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
-    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "validation.yaml", "convergence.yaml"):
+    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "validation.yaml", "convergence.yaml", "sharp.yaml"):
         cfg = yaml.safe_load((ROOT / "config" / name).read_text())
         validate(cfg, str(schema))
         for group in cfg["sweep"]:
