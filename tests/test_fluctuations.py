@@ -1,8 +1,6 @@
 """Thermal noise (vesicle_core.fluctuations): fluctuation-dissipation against the project's own mobility, exactly and
 by sampling; reproducible counter-based numbers on the NumPy, GPU-layout and stand-in CuPy paths; bad input."""
 
-import sys
-import types
 
 import numpy as np
 import pytest
@@ -149,34 +147,6 @@ def test_gpu_layout_gives_the_cpu_layout_noise():
     a = ThermalNoise(cpu, KT, seed=5).displacement(DT, 3).copy()
     b = ThermalNoise(gpu, KT, seed=5).displacement(DT, 3)
     assert np.abs(a - b).max() < 1e-13 * np.abs(a).max()
-
-
-@pytest.fixture
-def fake_cupy(monkeypatch):
-    """The stand-in CuPy of tests/test_gpu_path.py (NumPy behind the CuPy API the package calls)."""
-
-    class _Cupy(types.ModuleType):
-        def __getattr__(self, name):
-            return getattr(np, name)
-
-    cp = _Cupy("cupy")
-    calls = {"asarray": 0}
-
-    def asarray(a, dtype=None):
-        calls["asarray"] += 1
-        return np.array(a, dtype=dtype, copy=True)
-
-    cp.asarray = asarray
-    cp.asnumpy = lambda a: np.array(a, copy=True)
-    cp.get_array_module = lambda *arrays: cp
-    cp.cuda = types.SimpleNamespace(runtime=types.SimpleNamespace(getDeviceCount=lambda: 1))
-    cp.fft = np.fft
-    cp.ndarray = type("ndarray", (), {})
-    cpx = types.ModuleType("cupyx")
-    cpx.scatter_add = lambda out, idx, vals: np.add.at(out, idx, vals)
-    monkeypatch.setitem(sys.modules, "cupy", cp)
-    monkeypatch.setitem(sys.modules, "cupyx", cpx)
-    return cp, calls
 
 
 def test_cupy_stand_in_draws_the_numpy_numbers(fake_cupy):

@@ -1,14 +1,12 @@
 """Every CuPy-only branch, run on the CPU: a stand-in ``cupy``/``cupyx`` pair that answers with NumPy.
 
-No GPU has been lent to this project, so this is the only check those lines get. The stand-in implements the
-CuPy API the package calls (``get_array_module``, ``asnumpy``, ``cuda.runtime.getDeviceCount``, ``fft``,
-``cupyx.scatter_add``); everything else is NumPy's. A run on ``backend: cupy`` then takes the GPU branches
+No GPU has been lent to this project, so this is the only check those lines get. The stand-in (the ``fake_cupy``
+fixture of tests/conftest.py) implements the CuPy API the package calls (``get_array_module``, ``asarray``,
+``asnumpy``, ``cuda.runtime.getDeviceCount``, ``fft``, ``cupyx.scatter_add``); everything else is NumPy's. A run
+on ``backend: cupy`` then takes the GPU branches
 (``Backend.is_gpu``: asnumpy, scatter_add, the xp.fft path, the non-interleaved spectral layout, the generic
 gather in ibm.interpolate) and must give the NumPy run's numbers to FFT round-off.
 """
-
-import sys
-import types
 
 import numpy as np
 import pytest
@@ -16,36 +14,6 @@ import xarray as xr
 
 from vesicle_core import backend as backend_module
 from vesicle_core import mesh as M
-
-
-@pytest.fixture
-def fake_cupy(monkeypatch):
-    class _Cupy(types.ModuleType):
-        def __getattr__(self, name):  # the rest of the API is NumPy's
-            return getattr(np, name)
-
-    cp = _Cupy("cupy")
-    cp.asnumpy = lambda a: np.array(a, copy=True)
-    cp.get_array_module = lambda *arrays: cp
-    cp.cuda = types.SimpleNamespace(runtime=types.SimpleNamespace(getDeviceCount=lambda: 1))
-    cp.fft = np.fft
-    cp.ndarray = type("ndarray", (), {})  # no NumPy array is a CuPy array (xarray checks this type)
-    cpx = types.ModuleType("cupyx")
-    calls = {"scatter_add": 0, "asnumpy": 0}
-
-    def scatter_add(out, idx, vals):
-        calls["scatter_add"] += 1
-        np.add.at(out, idx, vals)
-
-    def asnumpy(a):
-        calls["asnumpy"] += 1
-        return np.array(a, copy=True)
-
-    cpx.scatter_add = scatter_add
-    cp.asnumpy = asnumpy
-    monkeypatch.setitem(sys.modules, "cupy", cp)
-    monkeypatch.setitem(sys.modules, "cupyx", cpx)
-    return cp, calls
 
 
 def test_cupy_backend_is_selected_and_takes_gpu_branches(fake_cupy):
