@@ -101,6 +101,46 @@ class SolveInfo:
     residual0: float  # rms strain of the warm-start residual
 
 
+def pcg(x, U, r, operator, precondition, dot, residual, tol, maxiter):
+    """Preconditioned conjugate gradients on the tension unknowns x, carrying the membrane velocity U along.
+
+    ``operator(p)`` returns (A p, q) with q the velocity change per unit p (so that U - alpha q stays the velocity of
+    x + alpha p), ``precondition(r)`` applies P^{-1}, ``dot`` is the inner product, ``residual(r)`` the rms strain
+    compared with ``tol``. x, U and r are updated in place. Returns (x, U, iterations, residual, start residual);
+    raises NumericalInstability when a search direction is not positive or ``maxiter`` is reached. Shared by the
+    per-triangle and the harmonic tension (:mod:`vesicle_core.tension_harmonic`).
+    """
+    res0 = res = residual(r)
+    it = 0
+    if res <= tol:
+        return x, U, it, res, res0
+    z = precondition(r)
+    p = z
+    rz = dot(r, z)
+    while True:
+        Ap, q = operator(p)
+        pAp = dot(p, Ap)
+        if not (pAp > 0 and np.isfinite(pAp)):
+            raise NumericalInstability(f"tension solve: operator not positive along a search direction "
+                                       f"(p.Ap = {pAp:.3g}) at iteration {it}")
+        alpha = rz / pAp
+        x += alpha * p
+        U -= alpha * q
+        r -= alpha * Ap
+        it += 1
+        res = residual(r)
+        if res <= tol:
+            return x, U, it, res, res0
+        if it >= maxiter or not np.isfinite(res):
+            raise NumericalInstability(
+                f"tension solve did not converge: rms strain residual {res:.3g} > cg_tol {tol:g} after "
+                f"{it} CG iterations (start {res0:.3g}); lower dt or raise cg_maxiter")
+        z = precondition(r)
+        rz_new = dot(r, z)
+        p = z + (rz_new / rz) * p
+        rz = rz_new
+
+
 class TensionSolver:
     """PCG for (dt D M D^T + W / Lambda) sigma = rhs with M = ``mobility`` (see the module docstring).
 
@@ -168,34 +208,9 @@ class TensionSolver:
         sigma = xp.array(sigma0, dtype=xp.float64, copy=True)
         U = self.mobility.apply(F - self.DT(sigma, geo, self.topo)) + u_inf
         r = dt * self.D(U, geo, self.topo) + area_error - self.A0 * sigma / self.Lambda
-        res0 = res = self.strain_rms(r)
-        it = 0
-        if res > self.tol:
-            z = self._precondition(r, geo, dt)
-            p = z
-            rz = float(xp.sum(r * z))
-            while True:
-                Ap, q = self.operator(p, geo, dt)
-                pAp = float(xp.sum(p * Ap))
-                if not (pAp > 0 and np.isfinite(pAp)):
-                    raise NumericalInstability(f"tension solve: operator not positive along a search direction "
-                                               f"(p.Ap = {pAp:.3g}) at iteration {it}")
-                alpha = rz / pAp
-                sigma += alpha * p
-                U -= alpha * q
-                r -= alpha * Ap
-                it += 1
-                res = self.strain_rms(r)
-                if res <= self.tol:
-                    break
-                if it >= self.maxiter or not np.isfinite(res):
-                    raise NumericalInstability(
-                        f"tension solve did not converge: rms strain residual {res:.3g} > cg_tol {self.tol:g} after "
-                        f"{it} CG iterations (start {res0:.3g}); lower dt or raise cg_maxiter")
-                z = self._precondition(r, geo, dt)
-                rz_new = float(xp.sum(r * z))
-                p = z + (rz_new / rz) * p
-                rz = rz_new
+        sigma, U, it, res, res0 = pcg(sigma, U, r, lambda p: self.operator(p, geo, dt),
+                                      lambda r: self._precondition(r, geo, dt), lambda a, b: float(xp.sum(a * b)),
+                                      self.strain_rms, self.tol, self.maxiter)
         if self.local is not None:
             self.local.solve_done()
         self.last = SolveInfo(it, res, res0)

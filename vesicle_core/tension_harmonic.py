@@ -32,8 +32,8 @@ import math
 
 import numpy as np
 
-from .errors import ConfigError, NumericalInstability
-from .tension import SolveInfo, face_D, face_DT
+from .errors import ConfigError
+from .tension import SolveInfo, face_D, face_DT, pcg
 
 
 def real_ylm(l_max, theta, phi):
@@ -193,34 +193,8 @@ class HarmonicTensionSolver:
         c = np.array(c0, dtype=float, copy=True)
         U = self.mobility.apply(F - face_DT(self._xp_faces(c), geo, self.topo)) + u_inf
         r = sp.test(self._np(dt * face_D(U, geo, self.topo) + area_error)) - sp.G @ c / self.Lambda
-        res0 = res = self.strain_rms(r)
-        it = 0
-        if res > self.tol:
-            z = self.precondition(r, dt)
-            p = z
-            rz = float(r @ z)
-            while True:
-                Ap, q = self.operator(p, geo, dt)
-                pAp = float(p @ Ap)
-                if not (pAp > 0 and np.isfinite(pAp)):
-                    raise NumericalInstability(f"tension solve: operator not positive along a search direction "
-                                               f"(p.Ap = {pAp:.3g}) at iteration {it}")
-                alpha = rz / pAp
-                c += alpha * p
-                U -= alpha * q
-                r -= alpha * Ap
-                it += 1
-                res = self.strain_rms(r)
-                if res <= self.tol:
-                    break
-                if it >= self.maxiter or not np.isfinite(res):
-                    raise NumericalInstability(
-                        f"tension solve did not converge: rms strain residual {res:.3g} > cg_tol {self.tol:g} after "
-                        f"{it} CG iterations (start {res0:.3g}); lower dt or raise cg_maxiter")
-                z = self.precondition(r, dt)
-                rz_new = float(r @ z)
-                p = z + (rz_new / rz) * p
-                rz = rz_new
+        c, U, it, res, res0 = pcg(c, U, r, lambda p: self.operator(p, geo, dt), lambda r: self.precondition(r, dt),
+                                  lambda a, b: float(a @ b), self.strain_rms, self.tol, self.maxiter)
         self.last = SolveInfo(it, res, res0)
         return c, self._xp_faces(c), U
 
