@@ -228,7 +228,7 @@ def test_catalog_command(tmp_path, capsys):
 
 
 # --------------------------------------------------------------------------- mesh and run columns
-NEW_COLUMNS = ("n_vertices", "mesh_family", "scheme", "dtype", "kernel", "tag")
+NEW_COLUMNS = ("n_vertices", "mesh_family", "scheme", "dtype", "kernel", "coupling", "tension_space", "tag")
 
 
 def _csv_table(path):
@@ -351,6 +351,9 @@ def test_old_files_and_missing_attributes(tmp_path):
     assert (b["N"], b["n_vertices"], b["mesh_family"], b["mesh_level"], b["scheme"], b["dtype"], b["tag"]) == (
         "", "", "", "", "", "", "")
     assert b["kernel"] == "peskin4" and b["S"] == "10"
+    # files written before the coupling and tension-space options ran with the kernel coupling and triangle tension
+    assert (old["coupling"], old["tension_space"], q["coupling"], q["tension_space"]) == (
+        "kernel", "triangle", "kernel", "triangle")
     fit = next(r for r in rows.values() if r["kind"] == "fit")
     assert all(fit[c] == "" for c in NEW_COLUMNS)
     # the two N = 64 cases that differ only in the mesh are told apart

@@ -29,9 +29,10 @@ beside them (esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attrib
                       icosphere | quasiuniform, subdivision level (icosphere), vertex count; from the mesh
                       attributes (``mesh_*`` on runs), the id, the ``n_node`` dimension, or 10 4^L + 2 for an
                       icosphere of level L
-    scheme, dtype, kernel
-                      run configuration of trajectories and spectra (kernel "peskin4" for files written before
-                      the kernel option, which always used it); empty for the other kinds
+    scheme, dtype, kernel, coupling, tension_space
+                      run configuration of trajectories and spectra (kernel "peskin4", coupling "kernel" and
+                      tension_space "triangle" for files written before those options, which always used them);
+                      empty for the other kinds
     backend           numpy | cupy (runs)
     tag               the tag of the case id (the sweep group's ``tag``), empty when untagged
     path, created, package_version
@@ -67,7 +68,7 @@ the dimensions ``Delta`` and ``S`` (outer join; points not in the sweep are NaN)
   for those: the ``path`` variable holds its location).
 
 Per-point metadata become variables on (Delta, S): ``case_id``, ``path``, ``chi``, ``N``, ``mesh_level``,
-``n_vertices``, ``mesh_family``, ``scheme``, ``dtype``, ``kernel``, ``tag``.
+``n_vertices``, ``mesh_family``, ``scheme``, ``dtype``, ``kernel``, ``coupling``, ``tension_space``, ``tag``.
 If two catalog rows share (Delta, S) (e.g. two grids or two meshes), select by any catalog column:
 ``open_sweep("results/catalog.csv", N=64, n_vertices=642)``, ``scheme="projection"``, ``tag="coarse"``. Numeric
 columns compare as numbers (``n_vertices="642"`` selects 642; floats to 1e-9 relative), a list selects any of its
@@ -107,8 +108,8 @@ __all__ = [
 ]
 
 COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype",
-           "kernel", "backend", "tag", "path", "created", "package_version", "delta_mesh", "l_star", "t_star",
-           "variables")
+           "kernel", "coupling", "tension_space", "backend", "tag", "path", "created", "package_version", "delta_mesh",
+           "l_star", "t_star", "variables")
 NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "delta_mesh", "l_star", "t_star")
 INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices")
 RUN_KINDS = ("trajectory", "spectra")
@@ -363,10 +364,12 @@ def catalog_row(path, root=None) -> dict:
             lv = _scalar_attr(attrs, "mesh_level", "level")
             level = lv if lv is not None and _num_or_nan(lv) >= 0 else None
         n_vertices = _n_vertices(ds, attrs, kind, parsed, family, level)
-        run = {"scheme": None, "dtype": None, "kernel": None}
+        run = {"scheme": None, "dtype": None, "kernel": None, "coupling": None, "tension_space": None}
         if kind in RUN_KINDS:
             run = {c: _text_attr(attrs, c) for c in run}
             run["kernel"] = run["kernel"] or DEFAULT_KERNEL
+            run["coupling"] = run["coupling"] or "kernel"
+            run["tension_space"] = run["tension_space"] or "triangle"
         row.update(
             Delta=_num_or_nan(delta), S=_num_or_nan(S), chi=_num_or_nan(chi),
             N=int(N) if N is not None else None, mesh_family=family if kind != "theory" and kind != "fit" else None,
@@ -420,6 +423,8 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
         "scheme": "time-stepping scheme of the run (projection | explicit | inextensible)",
         "dtype": "floating-point precision of the run's grid fields (float64 | float32)",
         "kernel": "regularised delta function of the run (peskin4 | roma3 | bao6)",
+        "coupling": "fluid-membrane coupling of the run (kernel | sharp)",
+        "tension_space": "tension space of the inextensible scheme (triangle | harmonic; triangle for the others)",
         "backend": "array backend of the run (numpy | cupy)",
         "tag": "tag of the case (its sweep group), empty when untagged",
         "path": "file location relative to the directory of this catalog",
@@ -684,8 +689,8 @@ def select_rows(rows, columns, where: dict, source="catalog") -> list[dict]:
 
 _TIME_SERIES_DROP_DIMS = ("m", "theta", "phi", "axis", "principal")
 # columns named in the "two datasets at one (Delta, S)" error when they tell the two apart
-_SELECT_HINT_COLUMNS = ("N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype", "kernel", "backend", "tag",
-                        "chi")
+_SELECT_HINT_COLUMNS = ("N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype", "kernel", "coupling",
+                        "tension_space", "backend", "tag", "chi")
 
 
 def _same(a, b) -> bool:
@@ -778,7 +783,7 @@ def open_sweep(path, kind: str = "spectra", time=None, **where):
         meta = {"case_id": r["case_id"], "path": r["abspath"], "chi": r["chi"]}
         for c in INTEGER_COLUMNS:
             meta[c] = float(r[c]) if r[c] is not None else math.nan
-        for c in ("mesh_family", "scheme", "dtype", "kernel", "tag"):
+        for c in ("mesh_family", "scheme", "dtype", "kernel", "coupling", "tension_space", "tag"):
             meta[c] = str(r[c] or "")
         for k, v in meta.items():
             red[k] = xr.DataArray(v)
