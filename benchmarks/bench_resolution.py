@@ -37,7 +37,7 @@ def parse_coupling(text):
 
 
 def main(Ns, kernels, couplings, edges, membrane="clean", tol=0.05, stokeslet=True, cg_tol=1e-9,
-         tension_space="triangle"):
+         tension_space="triangle", eps=1e-3):
     out = []
     for kernel in kernels:
         for coupling, floor in couplings:
@@ -47,7 +47,7 @@ def main(Ns, kernels, couplings, edges, membrane="clean", tol=0.05, stokeslet=Tr
                 t0 = time.perf_counter()
                 tab = resolution_table(Ns, LS, membrane=membrane, tol=tol, kernel=kernel, coupling=coupling,
                                        sharp_floor=floor, edge=edge, box_correct=True, cg_tol=cg_tol,
-                                       tension_space=tension_space,
+                                       tension_space=tension_space, eps=eps,
                                        progress=lambda s: print("   ", s, flush=True))
                 for N, row in tab.items():
                     out.append({"kernel": kernel, "coupling": coupling, "floor": floor, "edge_h": edge, "N": N,
@@ -80,13 +80,15 @@ if __name__ == "__main__":
     ap.add_argument("--no-stokeslet", action="store_true", help="skip the regularised-Stokeslet properties")
     ap.add_argument("--cg-tol", type=float, default=1e-9,
                     help="inextensible: tension CG tolerance (1e-6 is ample: the start residual is ~3e-3)")
+    ap.add_argument("--eps", type=float, default=1e-3,
+                    help="mode amplitude (1e-4 keeps the inextensible rates of l >~ 15 linear)")
     ap.add_argument("--tension-space", default="triangle", choices=("triangle", "harmonic"),
                     help="inextensible: the tension space (run parameter tension_space)")
     ap.add_argument("--json", help="write the rows here")
     a = ap.parse_args()
     rows = main(a.Ns, a.kernels, [parse_coupling(c) for c in a.couplings], a.edges,
                 "inextensible" if a.inextensible else "clean", stokeslet=not a.no_stokeslet, cg_tol=a.cg_tol,
-                tension_space=a.tension_space)
+                tension_space=a.tension_space, eps=a.eps)
     print(markdown(rows))
     if a.json:
         with open(a.json, "w") as fh:

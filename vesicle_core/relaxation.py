@@ -174,17 +174,19 @@ def box_factor_l2(N, n_vertices, L=5.0, **kw) -> float:
 
 def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.05, box_factor=None,
                      kernel=DEFAULT_KERNEL, coupling="kernel", sharp_floor=None, edge=2.0, box_correct=False,
-                     lh_max=2.0, progress=None, cg_tol=1e-9, tension_space="triangle"):
+                     lh_max=2.0, progress=None, cg_tol=1e-9, tension_space="triangle", eps=1e-3):
     """Rate ratios IBM/theory per (N, l) and l_res per N, for one kernel and coupling.
 
     ``n_vertices_of(N)``: the mesh for each grid (default: mean edge ``edge`` h; 2h is the project's rule for the
     kernel coupling, h the sharp coupling's). ``box_factor[l]`` divides out the periodic-box effect; or
     ``box_correct=True`` measures it for l = 2 (:func:`box_factor_l2`, two more solves per grid). Modes with
     l h > ``lh_max`` are skipped (far past any kernel's resolution). ``progress``: called with a line per grid.
-    ``cg_tol``, ``tension_space``: the tension solve's tolerance and space (inextensible membrane).
+    ``cg_tol``, ``tension_space``: the tension solve's tolerance and space (inextensible membrane). ``eps``: the
+    mode's amplitude; the constrained rates of l >~ 15 need 1e-4 to be linear (eps l^2 is the curvature's relative
+    perturbation: at 1e-3 the l = 20 rate comes out 9% slow, docs/solver.md).
     """
     kw = {"kernel": kernel, "coupling": coupling, "sharp_floor": sharp_floor, "cg_tol": cg_tol,
-          "tension_space": tension_space}
+          "tension_space": tension_space, "eps": eps}
     out = {}
     for N in Ns:
         nv = n_vertices_of(N) if n_vertices_of else default_vertices(N, L, edge)
