@@ -158,6 +158,21 @@ def _shade_stages(ax, st, x0, x1, label=True):
                     fontsize=9, color="0.3")
 
 
+def _label_dynamics_axes(ax_s, ax_d):
+    """Axes, labels and legends of :func:`plot_dynamics`' two panels: (a) sigma(t), (b) Delta_l(t) on a log scale."""
+    ax_s.axhline(0.0, color="0.6", lw=0.8)
+    ax_s.set_xlabel(r"$\dot\gamma (t - t_0)$")
+    ax_s.set_ylabel(r"$\sigma$  [$\kappa/R^2$]")
+    ax_s.set_title("(a) global surface tension", fontsize=10)
+    ax_s.legend(fontsize=8, loc="best")
+    ax_d.set_yscale("log")
+    ax_d.set_xlabel(r"$\dot\gamma (t - t_0)$")
+    ax_d.set_ylabel(r"$\Delta_l = \sum_m |u_{l,m}|^2$")
+    ax_d.set_title(r"(b) $\Delta_2$ and $\Delta_{l_*}$", fontsize=10)
+    if ax_d.lines:
+        ax_d.legend(fontsize=8, loc="best")
+
+
 def plot_dynamics(spectra, theory=None, outputs="dynamics.png", *, title=None, dpi=150, t_min=0.0, t_max=None):
     """Fig. 3/5 style: (a) sigma(t); (b) Delta_2(t) and Delta_{l_*}(t); simulation (solid) and PA (dashed).
 
@@ -211,17 +226,7 @@ def plot_dynamics(spectra, theory=None, outputs="dynamics.png", *, title=None, d
         if math.isfinite(ts):
             for ax in (ax_s, ax_d):
                 ax.axvline(ts, color="k" if name == "IBM" else "0.5", ls=":", lw=1)
-    ax_s.axhline(0.0, color="0.6", lw=0.8)
-    ax_s.set_xlabel(r"$\dot\gamma (t - t_0)$")
-    ax_s.set_ylabel(r"$\sigma$  [$\kappa/R^2$]")
-    ax_s.set_title("(a) global surface tension", fontsize=10)
-    ax_s.legend(fontsize=8, loc="best")
-    ax_d.set_yscale("log")
-    ax_d.set_xlabel(r"$\dot\gamma (t - t_0)$")
-    ax_d.set_ylabel(r"$\Delta_l = \sum_m |u_{l,m}|^2$")
-    ax_d.set_title(r"(b) $\Delta_2$ and $\Delta_{l_*}$", fontsize=10)
-    if ax_d.lines:
-        ax_d.legend(fontsize=8, loc="best")
+    _label_dynamics_axes(ax_s, ax_d)
     # x range: the simulation's when there is one (the PA runs on past the end of a short run)
     ref = [s for s in series if s[1] == "IBM"] or series
     x0 = max(t_min, min(float(s[3][s[4]].min()) for s in ref))

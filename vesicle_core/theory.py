@@ -513,6 +513,36 @@ def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, ampli
     return sol
 
 
+def _theory_attrs(sol, normalisation, amplitudes, thermal, t_end, rtol, atol, grid_h, kernel, coupling) -> dict:
+    """The global attributes of :func:`run_theory`'s Dataset: the case, the PA's settings and the grid model."""
+    attrs = {
+        "title": "perturbation analysis of a quasi-spherical vesicle after the flow reversal (Sec. III)",
+        "delta": sol.delta,
+        "S": sol.S,
+        "chi": sol.chi,
+        "seed": sol.seed,
+        "kT_over_kappa": sol.kT_over_kappa,
+        "normalisation": f"{normalisation}: {_NORMALISATION_TEXT[normalisation]}",
+        "amplitudes": amplitudes,
+        "thermal": thermal,
+        "thermal_spectrum": "|u_lm|^2 = 2 kT/(kappa (l^4 + S l^2/A_2))"
+        + (" on the scaled u" if thermal == "literal" else " * (l-1)(l+2)/delta"),
+        "l_max": sol.l_max,
+        "t_end": t_end,
+        "t0": 0.0,
+        "integrator": f"integrating factor + DOP853 (rtol={rtol:g}, atol={atol:g}), no renormalisation",
+        "nfev": sol.nfev,
+        "l_star_rule": "eq. (31) at t_* = argmin Delta_2 over 3 <= l <= l_max_nontrivial with sum_m |u_lm|^2",
+        "source": "vesicle_core.theory.run_theory",
+    }
+    if grid_h is not None:
+        from .kernels import DEFAULT_KERNEL
+
+        attrs.update(grid_h=float(grid_h), kernel=kernel or DEFAULT_KERNEL, coupling=coupling or "kernel",
+                     grid_damping="Gamma_l and A_l times kernels.mode_damping(l, grid_h, kernel, coupling)")
+    return attrs
+
+
 def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kappa=None, *, amplitudes="fixed",
                thermal="literal", normalisation="area", store_modes=True, rtol=1e-12, atol=1e-14, grid_h=None,
                kernel=None, coupling=None):
@@ -575,31 +605,8 @@ def run_theory(delta, S, l_max=None, seed=0, t_end=None, n_out=401, kT_over_kapp
         ui = np.where(invalid, np.nan, u.imag)
         data["u_real"] = (("time", "l", "m"), ur, {**one, "long_name": "Re u_lm, scaled amplitude of eq. (10)"})
         data["u_imag"] = (("time", "l", "m"), ui, {**one, "long_name": "Im u_lm, scaled amplitude of eq. (10)"})
-    attrs = {
-        "title": "perturbation analysis of a quasi-spherical vesicle after the flow reversal (Sec. III)",
-        "delta": sol.delta,
-        "S": sol.S,
-        "chi": sol.chi,
-        "seed": sol.seed,
-        "kT_over_kappa": sol.kT_over_kappa,
-        "normalisation": f"{normalisation}: {_NORMALISATION_TEXT[normalisation]}",
-        "amplitudes": amplitudes,
-        "thermal": thermal,
-        "thermal_spectrum": "|u_lm|^2 = 2 kT/(kappa (l^4 + S l^2/A_2))"
-        + (" on the scaled u" if thermal == "literal" else " * (l-1)(l+2)/delta"),
-        "l_max": L,
-        "t_end": float(time[-1]),
-        "t0": 0.0,
-        "integrator": f"integrating factor + DOP853 (rtol={rtol:g}, atol={atol:g}), no renormalisation",
-        "nfev": sol.nfev,
-        "l_star_rule": "eq. (31) at t_* = argmin Delta_2 over 3 <= l <= l_max_nontrivial with sum_m |u_lm|^2",
-        "source": "vesicle_core.theory.run_theory",
-    }
-    if grid_h is not None:
-        from .kernels import DEFAULT_KERNEL
-
-        attrs.update(grid_h=float(grid_h), kernel=kernel or DEFAULT_KERNEL, coupling=coupling or "kernel",
-                     grid_damping="Gamma_l and A_l times kernels.mode_damping(l, grid_h, kernel, coupling)")
+    attrs = _theory_attrs(sol, normalisation, amplitudes, thermal, float(time[-1]), rtol, atol, grid_h, kernel,
+                          coupling)
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
