@@ -285,32 +285,26 @@ class StokesSolver:
         return a.view(self.dtype) if self._interleave else a
 
     def _steady_symbols(self, scale):
+        return self._cached_symbols(self._steady_cache, scale, lambda: self._inv_lam)
+
+    def _root_symbols(self, scale):
+        """(A, Bm) of :meth:`_apply_steady` for scale * xi (W / lam)^{1/2} (the square root of the steady symbol)."""
+        # _inv_lam carries W: sqrt(W / lam), 0 at k = 0
+        return self._cached_symbols(self._root_cache, scale, lambda: np.sqrt(self._inv_lam))
+
+    def _cached_symbols(self, cache, scale, base):
+        """(A, Bm) of :meth:`_apply_steady` with A = base() * scale / N^3, cached per scale (at most four)."""
         key = float(scale)
-        sym = self._steady_cache.get(key)
+        sym = cache.get(key)
         if sym is None:
-            A = self._inv_lam * (key / self._N3)
+            A = base() * (key / self._N3)
             if self._fused:  # once per mode, not repeated for the interleaved view
                 sym = (A.astype(self.dtype), (A * self._ginv).astype(self.dtype))
             else:
                 sym = (self._to_dev(A), self._to_dev(A * self._ginv))
-            if len(self._steady_cache) >= 4:
-                self._steady_cache.clear()
-            self._steady_cache[key] = sym
-        return sym
-
-    def _root_symbols(self, scale):
-        """(A, Bm) of :meth:`_apply_steady` for scale * xi (W / lam)^{1/2} (the square root of the steady symbol)."""
-        key = float(scale)
-        sym = self._root_cache.get(key)
-        if sym is None:
-            A = np.sqrt(self._inv_lam) * (key / self._N3)  # _inv_lam carries W: sqrt(W / lam), 0 at k = 0
-            if self._fused:
-                sym = (A.astype(self.dtype), (A * self._ginv).astype(self.dtype))
-            else:
-                sym = (self._to_dev(A), self._to_dev(A * self._ginv))
-            if len(self._root_cache) >= 4:
-                self._root_cache.clear()
-            self._root_cache[key] = sym
+            if len(cache) >= 4:
+                cache.clear()
+            cache[key] = sym
         return sym
 
     def _dt_symbols(self, dt):
