@@ -20,9 +20,9 @@ import sys
 
 import numpy as np
 
-from vesicle_core import harmonics as H
-from vesicle_core.flow import background_velocity
-from vesicle_core.tension import LocalPreconditioner, TensionSolver, face_D
+from vesicle_core.analysis import harmonics as H
+from vesicle_core.model.flow import background_velocity
+from vesicle_core.solver.tension import LocalPreconditioner, TensionSolver, face_D
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_tension_sources import load_case  # noqa: E402

@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from vesicle_core import mesh as M
-from vesicle_core import tension as T
-from vesicle_core.run_config import RunConfig
-from vesicle_core.simulate import _Run
-from vesicle_core.units import chi_from_S
+from vesicle_core.geometry import mesh as M
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.units import chi_from_S
+from vesicle_core.solver import tension as T
+from vesicle_core.solver.simulate import _Run
 
 
 def main():

@@ -13,10 +13,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 
-from vesicle_core.backend import get_backend  # noqa: E402
-from vesicle_core.bench import interleaved_ms  # noqa: E402
-from vesicle_core.ibm import Grid  # noqa: E402
-from vesicle_core.stokes import StokesSolver  # noqa: E402
+from vesicle_core.solver.backend import get_backend  # noqa: E402
+from vesicle_core.solver.bench import interleaved_ms  # noqa: E402
+from vesicle_core.solver.ibm import Grid  # noqa: E402
+from vesicle_core.solver.stokes import StokesSolver  # noqa: E402
 
 
 def main(sizes, repeats):

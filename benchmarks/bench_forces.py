@@ -14,8 +14,8 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from vesicle_core import membrane as B  # noqa: E402
-from vesicle_core import mesh as M  # noqa: E402
+from vesicle_core.geometry import mesh as M  # noqa: E402
+from vesicle_core.solver import membrane as B  # noqa: E402
 
 
 def median_time(fn, repeats):

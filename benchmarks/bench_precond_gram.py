@@ -21,11 +21,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from vesicle_core import mesh as Mm
 from vesicle_core.errors import NumericalInstability
-from vesicle_core.mobility import IBMMobility, IBMSolver, pair_table
-from vesicle_core.run_config import RunConfig
-from vesicle_core.tension import LocalPreconditioner, TensionSolver, face_D_matrix
+from vesicle_core.geometry import mesh as Mm
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.mobility import IBMMobility, IBMSolver, pair_table
+from vesicle_core.solver.tension import LocalPreconditioner, TensionSolver, face_D_matrix
 
 LAMBDA = 1.34e7  # 5e4 chi at S = 2224
 

@@ -20,8 +20,8 @@ import sys
 import tempfile
 import time
 
-from vesicle_core import mesh as M
-from vesicle_core.simulate import RunConfig, run
+from vesicle_core.geometry import mesh as M
+from vesicle_core.solver.simulate import RunConfig, run
 
 
 def stage(path, name):

@@ -2,9 +2,11 @@
 
 For each kernel (3-point, 4-point, 6-point), coupling (``kernel``: the paper's; ``sharp``: window deconvolution with
 floor f), mesh edge (2h, the kernel's rule; h, the sharp coupling's) and grid N, the relaxation rate of
-r = 1 + eps Y_l0 (vesicle_core.relaxation) over the clean-interface theory, l = 2 corrected for the periodic box, and
+r = 1 + eps Y_l0 (vesicle_core.validation.relaxation) over the clean-interface theory, l = 2 corrected for the
+periodic box, and
 l_res: the highest l whose ratio stays within 5% of 1 for every l up to it. Per kernel and coupling also the
-regularised Stokeslet (vesicle_core.stokeslet): hydrodynamic radius, translation invariance of the self and pair
+regularised Stokeslet (vesicle_core.validation.stokeslet): hydrodynamic radius, translation invariance of the self and
+pair
 mobility over sub-grid shifts, and the pair mobility against the periodic Oseen / RPY tensors at 2-10 h.
 
     python benchmarks/bench_resolution.py [--Ns 64 96 128 192] [--kernels peskin4] [--couplings kernel sharp:0.01]
@@ -21,9 +23,9 @@ import argparse
 import json
 import time
 
-from vesicle_core.parameters import SHARP_FLOOR
-from vesicle_core.relaxation import resolution_table
-from vesicle_core.stokeslet import fmt_report, stokeslet_report
+from vesicle_core.model.parameters import SHARP_FLOOR
+from vesicle_core.validation.relaxation import resolution_table
+from vesicle_core.validation.stokeslet import fmt_report, stokeslet_report
 
 LS = (2, 3, 4, 6, 8, 10, 13, 16, 20, 25, 30, 40)
 

@@ -32,15 +32,15 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from vesicle_core import mesh as M
-from vesicle_core.simulate import RunConfig, run
-from vesicle_core.spectra import spectra_from_trajectory
+from vesicle_core.analysis.spectra import spectra_from_trajectory
+from vesicle_core.geometry import mesh as M
+from vesicle_core.solver.simulate import RunConfig, run
 
 
 def inextensibility(ds):
     """Triangle and dual-cell strain per frame and the checkerboard measure of the tension."""
-    from vesicle_core import membrane as B
-    from vesicle_core.tension import dual_areas, vertex_mean
+    from vesicle_core.solver import membrane as B
+    from vesicle_core.solver.tension import dual_areas, vertex_mean
 
     X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
     topo = B.Topology(ds.face_node_connectivity.values, X.shape[1])

@@ -31,11 +31,11 @@ import gc  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from vesicle_core.backend import get_backend  # noqa: E402
-from vesicle_core.bench import interleaved_ms  # noqa: E402
-from vesicle_core.ibm import Coupler, Grid  # noqa: E402
-from vesicle_core.mesh import make_vesicle  # noqa: E402
-from vesicle_core.stokes import StokesSolver  # noqa: E402
+from vesicle_core.geometry.mesh import make_vesicle  # noqa: E402
+from vesicle_core.solver.backend import get_backend  # noqa: E402
+from vesicle_core.solver.bench import interleaved_ms  # noqa: E402
+from vesicle_core.solver.ibm import Coupler, Grid  # noqa: E402
+from vesicle_core.solver.stokes import StokesSolver  # noqa: E402
 
 
 def _stages(be, grid, solver, unsteady, cp, ubuf, fbuf, chat, X, F):

@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from vesicle_core.backend import get_backend
-from vesicle_core.ibm import Grid
-from vesicle_core.stokes import StokesSolver
+from vesicle_core.solver.backend import get_backend
+from vesicle_core.solver.ibm import Grid
+from vesicle_core.solver.stokes import StokesSolver
 
 
 def _pair_times(fa, fb, reps):

@@ -21,10 +21,10 @@ import argparse
 import numpy as np
 import scipy.linalg as sl
 
-from vesicle_core import mesh as M
-from vesicle_core.mobility import IBMMobility
-from vesicle_core.simulate import IBMSolver, RunConfig, power_dt
-from vesicle_core.tension import TensionSolver
+from vesicle_core.geometry import mesh as M
+from vesicle_core.solver.mobility import IBMMobility
+from vesicle_core.solver.simulate import IBMSolver, RunConfig, power_dt
+from vesicle_core.solver.tension import TensionSolver
 
 
 def _with_uniform_tension(forces, sigma):
@@ -91,7 +91,7 @@ def main():
 def local_mobility(mesh, N, chi):
     import scipy.sparse.linalg as spla
 
-    from vesicle_core.mobility import local_mobility_matrix, pair_table
+    from vesicle_core.solver.mobility import local_mobility_matrix, pair_table
 
     s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible"))
     table = pair_table(IBMMobility(s.coupler, s.stokes))

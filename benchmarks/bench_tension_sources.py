@@ -35,15 +35,15 @@ import tempfile
 import numpy as np
 import xarray as xr
 
-from vesicle_core import integrators as I
-from vesicle_core import membrane as B
-from vesicle_core import mesh as M
-from vesicle_core.flow import background_velocity
-from vesicle_core.mobility import IBMMobility, IBMSolver
-from vesicle_core.run_config import RunConfig
-from vesicle_core.simulate import run
-from vesicle_core.spectra import spectra_from_trajectory
-from vesicle_core.tension import TensionSolver, dual_areas, face_mean, vertex_mean
+from vesicle_core.analysis.spectra import spectra_from_trajectory
+from vesicle_core.geometry import mesh as M
+from vesicle_core.model.flow import background_velocity
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver import integrators as I
+from vesicle_core.solver import membrane as B
+from vesicle_core.solver.mobility import IBMMobility, IBMSolver
+from vesicle_core.solver.simulate import run
+from vesicle_core.solver.tension import TensionSolver, dual_areas, face_mean, vertex_mean
 
 
 def edges(faces):
@@ -120,7 +120,7 @@ class FreedTensionSolver(TensionSolver):
         return super().strain_rms(self._P(r))
 
     def solve(self, geo, F, u_inf, area_error, dt, sigma0):
-        from vesicle_core.tension import face_D_matrix
+        from vesicle_core.solver.tension import face_D_matrix
 
         if self.Z is None or self._n % self.refresh == 0:
             D = face_D_matrix(geo, self.topo)

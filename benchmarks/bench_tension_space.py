@@ -28,10 +28,10 @@ import math
 import numpy as np
 import xarray as xr
 
-from vesicle_core import harmonics as H
-from vesicle_core import membrane as Mb
-from vesicle_core.tension import vertex_mean
-from vesicle_core.tension_harmonic import HarmonicSpace, default_l_max, inf_sup
+from vesicle_core.analysis import harmonics as H
+from vesicle_core.solver import membrane as Mb
+from vesicle_core.solver.tension import vertex_mean
+from vesicle_core.solver.tension_harmonic import HarmonicSpace, default_l_max, inf_sup
 
 
 def quality(X, faces):
@@ -86,7 +86,7 @@ def analyse(path, l_max=None):
 
 
 def physics(path, ref):
-    from vesicle_core.spectra import spectra_from_trajectory
+    from vesicle_core.analysis.spectra import spectra_from_trajectory
 
     specs = []
     for p in (ref, path):
@@ -102,7 +102,7 @@ def physics(path, ref):
 
 
 def inf_sup_table(n_vertices, l_list):
-    from vesicle_core import mesh as M
+    from vesicle_core.geometry import mesh as M
 
     head = " ".join(f"{'L=' + str(L):>8}" for L in l_list)
     print(f"{'vertices':>8} {'triangles':>9} {'edge/R':>7} {'triangle':>9} " + head)
@@ -129,9 +129,9 @@ def conditioning(path, frames, N):
     also the measured rho_l against the frame's l."""
     import scipy.linalg as sl
 
-    from vesicle_core.mobility import IBMMobility
-    from vesicle_core.simulate import IBMSolver, RunConfig
-    from vesicle_core.tension_harmonic import HarmonicTensionSolver
+    from vesicle_core.solver.mobility import IBMMobility
+    from vesicle_core.solver.simulate import IBMSolver, RunConfig
+    from vesicle_core.solver.tension_harmonic import HarmonicTensionSolver
 
     ds = xr.open_dataset(path).load()
     faces = ds.face_node_connectivity.values.astype(np.int64)
@@ -170,7 +170,7 @@ def conditioning(path, frames, N):
 def relaxation(N, n_vertices, ls, l_t_list):
     """Relaxation rate of r = 1 + eps Y_l0 with the local area constraint (relaxation.mode_rate's setting, no flow):
     triangle tension and the harmonic tension up to each l_t, over the theory Gamma_l (eq. 11)."""
-    from vesicle_core.relaxation import mode_rate
+    from vesicle_core.validation.relaxation import mode_rate
 
     cols = ", ".join(f"l_t = {L}" for L in l_t_list)
     print(f"N = {N}, {n_vertices} vertices: rate / theory; columns: clean interface, triangle, {cols}")

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import yaml
 
-from vesicle_core.cutoff import DEFAULT_LMAX_LABEL, exponent_vs_lmax
+from vesicle_core.validation.cutoff import DEFAULT_LMAX_LABEL, exponent_vs_lmax
 
 DELTA = 0.116
 L_MAX = [16, 20, 24, 28, 32, 36, 40, 48, 64, None]

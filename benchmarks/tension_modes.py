@@ -33,9 +33,9 @@ import sys
 import numpy as np
 import scipy.sparse as sp
 
-from vesicle_core import harmonics as H
-from vesicle_core.flow import background_velocity
-from vesicle_core.tension import TensionSolver, face_D_matrix, face_DT, vertex_mean
+from vesicle_core.analysis import harmonics as H
+from vesicle_core.model.flow import background_velocity
+from vesicle_core.solver.tension import TensionSolver, face_D_matrix, face_DT, vertex_mean
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_tension_sources import edges, load_case  # noqa: E402

@@ -26,9 +26,9 @@ import sys
 import numpy as np
 import xarray as xr
 
-from vesicle_core import harmonics as H
-from vesicle_core import membrane as B
-from vesicle_core.tension import vertex_mean
+from vesicle_core.analysis import harmonics as H
+from vesicle_core.solver import membrane as B
+from vesicle_core.solver.tension import vertex_mean
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_tension_sources import edges  # noqa: E402

@@ -5,7 +5,7 @@
 For each grid N (box L = N h, h = 1, kT = 1, mu = 1) and coupling (kernel: Peskin 4-point; sharp: the window
 deconvolution at floor 0.01), ``--markers`` passive markers start on a lattice (spacing L / 2) and move by
 Euler-Maruyama in the fixed grid frame, X <- X + J(X) dU with dU the noise field of
-:class:`vesicle_core.fluctuations.ThermalNoise` (no forces, no drift term). Measured:
+:class:`vesicle_core.solver.fluctuations.ThermalNoise` (no forces, no drift term). Measured:
 
 * D_inc = <|dX|^2> / (6 dt) over every marker and step (the one-step covariance, 2 kT dt M_self(X));
 * D_msd = MSD(tau) / (6 tau) at a lag tau (unwrapped positions), the long-time diffusion coefficient;
@@ -26,13 +26,13 @@ import time
 
 import numpy as np
 
-from vesicle_core.backend import get_backend
-from vesicle_core.fluctuations import ThermalNoise, mobility_divergence, mobility_matrix
-from vesicle_core.ibm import Coupler, Grid
-from vesicle_core.kernels import sharpening_symbol
-from vesicle_core.mobility import IBMMobility
-from vesicle_core.stokes import StokesSolver
-from vesicle_core.stokeslet import HASIMOTO, hydrodynamic_radius
+from vesicle_core.solver.backend import get_backend
+from vesicle_core.solver.fluctuations import ThermalNoise, mobility_divergence, mobility_matrix
+from vesicle_core.solver.ibm import Coupler, Grid
+from vesicle_core.solver.kernels import sharpening_symbol
+from vesicle_core.solver.mobility import IBMMobility
+from vesicle_core.solver.stokes import StokesSolver
+from vesicle_core.validation.stokeslet import HASIMOTO, hydrodynamic_radius
 
 
 def hasimoto_D(kT, R_h, L):
@@ -88,7 +88,7 @@ def drift(coupling, rng, N=16):
     m0, spread = self_mobility(mob, rng, 32)
     single = np.array([np.linalg.norm(mobility_divergence(mob, rng.uniform(0, 1, (1, 3)), 1e-4))
                        for _ in range(32)]) / (m0 / g.h)
-    from vesicle_core.mesh import icosphere
+    from vesicle_core.geometry.mesh import icosphere
 
     V, _ = icosphere(2)
     V = 4.0 * V / np.linalg.norm(V, axis=1, keepdims=True)

@@ -161,14 +161,14 @@ def test_duplicate_cases_are_refused(tmp_path):
 
 def test_config_files_satisfy_schema_and_solver():
     """Every shipped config validates against the schema, and its run section (table defaults filled in) is a
-    valid vesicle_core.simulate.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
+    valid vesicle_core.solver.simulate.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
     from dataclasses import fields
 
     from snakemake.utils import validate
 
-    from vesicle_core.parameters import RUN_PARAMETERS, defaults
-    from vesicle_core.simulate import RunConfig
-    from vesicle_core.units import chi_from_S
+    from vesicle_core.model.parameters import RUN_PARAMETERS, defaults
+    from vesicle_core.model.units import chi_from_S
+    from vesicle_core.solver.simulate import RunConfig
 
     schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
     params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"
@@ -265,7 +265,7 @@ def test_lint_is_clean(tmp_path):
 def test_tiny_workflow_end_to_end(tmp_path):
     import xarray as xr
 
-    from vesicle_core.catalog import open_sweep, read_catalog
+    from vesicle_core.data.catalog import open_sweep, read_catalog
 
     wd = workflow_copy(tmp_path)
     r = snakemake(wd, "--cores", "2", "--configfile", "config/tiny.yaml", timeout=900)

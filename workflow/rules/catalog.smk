@@ -1,5 +1,5 @@
 # The data catalog: one CSV row per dataset, the same rows typed in Parquet, and an ESM-collection JSON beside them
-# (vesicle_core.catalog).
+# (vesicle_core.data.catalog).
 
 
 rule catalog:

@@ -1,4 +1,4 @@
-# Figures (vesicle_core.plots with matplotlib, vesicle_core.render with pyvista off-screen), collected by
+# Figures (vesicle_core.viz.plots with matplotlib, vesicle_core.viz.render with pyvista off-screen), collected by
 # `snakemake --report report.html` with the captions in workflow/report/.
 
 

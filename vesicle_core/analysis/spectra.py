@@ -1,0 +1,215 @@
+"""Spherical-harmonic spectra of a trajectory (Sec. V: eqs. 30-32, t_*, l_*, A_p-bar), one snapshot at a time with
+:func:`vesicle_core.analysis.harmonics.analyze_snapshot`, as an xarray Dataset.
+
+Spectra layout: see :func:`spectra_from_trajectory`. Complex coefficients are stored as real and imaginary parts;
+entries with |m| > l are NaN. The trajectory format it reads is in :mod:`vesicle_core.data.datasets`.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import xarray as xr
+
+from ..data.datasets import _connectivity, cf_attrs, netcdf_safe_attrs, validate_trajectory
+from ..errors import check_range
+from . import harmonics as H
+
+__all__ = ["DEFAULT_LMAX_CAP", "spectra_from_trajectory"]
+
+DEFAULT_LMAX_CAP = 64
+
+
+def _var(dims, data, units, long_name, **extra):
+    return (dims, data, {"units": units, "long_name": long_name, **extra})
+
+
+def _delta_from(traj, vertices, faces, delta):
+    if delta is not None:
+        return float(check_range("delta", delta, 0.0, None, lo_open=True)), "argument"
+    d = traj.attrs.get("delta")
+    try:
+        d = float(np.asarray(d).ravel()[0])
+    except (TypeError, ValueError, IndexError):
+        d = float("nan")
+    if math.isfinite(d) and d > 0:
+        return d, "trajectory attribute delta"
+    q = H.quadrature(vertices, faces)
+    return float(q.areas.sum() / q.R**2 - 4.0 * math.pi), "first snapshot's meshed excess area"
+
+
+def spectra_from_trajectory(
+    traj: xr.Dataset, l_max: int | None = None, stride: int = 1, progress: bool = False, *,
+    rule: str = "pn", weights: str = "solid_angle", threshold: float = H.NONTRIVIAL_THRESHOLD,
+    delta: float | None = None, map_shape: tuple[int, int] | None = None, command: str | None = None,
+) -> xr.Dataset:
+    """Spherical-harmonic analysis (Sec. V) of every ``stride``-th snapshot of a trajectory.
+
+    l_max: default the largest the mesh resolves (:func:`harmonics.resolvable_l_max`), capped at 64; a larger
+    value warns ResolutionWarning. delta: Delta of the eq. (30) scale factor (default: the trajectory's ``delta``
+    attribute, else the first snapshot's meshed excess area). rule / weights: quadrature (harmonics docstring).
+    threshold: |u_lm| above which a mode counts as nontrivial (l_max of Sec. V.A). map_shape (n_theta, n_phi):
+    also store A_p(theta, phi) maps synthesised from u~_lm on a cell-centred grid.
+
+    Result layout -- coords: time, t_tau (if the trajectory has it), l (0..l_max), m (-l_max..l_max), axis (x, y, z),
+    [theta, phi]; data (per-variable units and long_name):
+      u_real, u_imag (time, l, m)       scaled amplitudes u_lm of eq. (30); l < 2 unscaled; NaN for |m| > l
+      Delta_l (time, l)                 sum_m |u_lm|^2
+      u_tilde_real, u_tilde_imag, Delta_tilde_l   eq. (32) spectrum of A_p and its Delta~_l
+      sigma (time)                      global tension, copied from the trajectory
+      face_tension_mean, face_tension_std (time)  area-weighted statistics of the local tension
+      A_p_bar (time)                    (1/A) sum A_p^2 A_i [R^2]
+      l_max_nontrivial_t, l_star_t (time)  largest l with |u_lm| > threshold, and eq. (31) up to it
+      t_star, l_star, l_max_nontrivial  scalars at t_* = argmin_{time >= 0} Delta_2 (NaN / -1 if no such time)
+      ellipsoid_axes, ellipsoid_center (time, axis), ellipsoid_rotation (time, axis, principal)
+      centroid (time, axis), R_eq (time), Delta_mesh (time)   geometry of each snapshot
+      [A_p_map (time, theta, phi)]
+    attrs: the trajectory's attributes, then the CF attributes and the analysis parameters (l_max, stride, rule,
+    weights, threshold, delta_used, delta_source, resolvable_l_max). t_* is taken over the analysed (strided)
+    snapshots only.
+    """
+    validate_trajectory(traj)
+    stride = int(check_range("stride", stride, 1, None, integer=True))
+    check_range("threshold", threshold, 0.0, None)
+    sub = traj.isel(time=slice(None, None, stride))
+    faces = _connectivity(traj, "trajectory")
+    nt = sub.sizes["time"]
+
+    def vertices_at(k):
+        return np.stack([np.asarray(sub[c].isel(time=k).values, dtype=float) for c in ("node_x", "node_y", "node_z")],
+                        axis=1)
+
+    v0 = vertices_at(0)
+    l_res = H.resolvable_l_max(v0, faces)
+    if l_max is None:
+        l_max = max(2, min(DEFAULT_LMAX_CAP, l_res))
+    l_max = int(check_range("l_max", l_max, 2, 1000, integer=True))
+    if l_max > l_res:
+        warnings.warn(
+            f"l_max = {l_max} exceeds what this mesh resolves (pi / mean angular edge = {l_res}); "
+            "modes above it are aliased mesh noise", H.ResolutionWarning, stacklevel=2)
+    delta_used, delta_source = _delta_from(traj, v0, faces, delta)
+    if map_shape is not None:
+        n_th, n_ph = (int(check_range("map_shape", n, 1, 100_000, integer=True)) for n in map_shape)
+        theta_g = (np.arange(n_th) + 0.5) * math.pi / n_th
+        phi_g = -math.pi + (np.arange(n_ph) + 0.5) * 2.0 * math.pi / n_ph
+        TH, PH = np.meshgrid(theta_g, phi_g, indexing="ij")
+
+    L, M = l_max + 1, 2 * l_max + 1
+    u = np.empty((nt, L, M), complex)
+    ut = np.empty((nt, L, M), complex)
+    scal = {k: np.empty(nt) for k in ("A_p_bar", "ft_mean", "ft_std", "R_eq", "Delta_mesh", "l_star_t")}
+    lmn = np.empty(nt, dtype=np.int32)
+    ax, cen, rot, xc = (np.empty((nt, 3)), np.empty((nt, 3)), np.empty((nt, 3, 3)), np.empty((nt, 3)))
+    maps = np.empty((nt, n_th, n_ph)) if map_shape is not None else None
+
+    it = range(nt)
+    if progress:
+        from tqdm.auto import tqdm
+
+        it = tqdm(it, desc="spectra", unit="snapshot")
+    for k in it:
+        v = v0 if k == 0 else vertices_at(k)
+        r = H.analyze_snapshot(v, faces, l_max, delta=delta_used, rule=rule, weights=weights,
+                               threshold=threshold, warn=False)
+        u[k], ut[k] = r["u"], r["u_tilde"]
+        lmn[k] = r["l_max_nontrivial"]
+        scal["l_star_t"][k] = r["l_star"]
+        scal["A_p_bar"][k] = r["A_p_bar"]
+        scal["R_eq"][k] = r["R"]
+        scal["Delta_mesh"][k] = r["delta_mesh"]
+        ft = np.asarray(sub["face_tension"].isel(time=k).values, dtype=float)
+        a = r["areas"]
+        mean = float((ft * a).sum() / a.sum())
+        scal["ft_mean"][k] = mean
+        scal["ft_std"][k] = math.sqrt(max(float(((ft - mean) ** 2 * a).sum() / a.sum()), 0.0))
+        cen[k], ax[k], rot[k] = r["ellipsoid"]
+        xc[k] = r["center"]
+        if maps is not None:
+            maps[k] = r["R"] * H.synthesize(ut[k], TH, PH)
+
+    l = np.arange(L)
+    m = np.arange(-l_max, l_max + 1)
+    invalid = np.abs(m)[None, :] > l[:, None]
+    for arr in (u, ut):
+        arr[:, invalid] = np.nan + 1j * np.nan
+    D = H.delta_l(u)
+    Dt = H.delta_l(ut)
+    time = np.asarray(sub["time"].values, dtype=float)
+    i_star = H.t_star_index(time, D[:, 2])
+    t_star = float(time[i_star]) if i_star >= 0 else float("nan")
+    l_star = float(scal["l_star_t"][i_star]) if i_star >= 0 else float("nan")
+    lmn_star = int(lmn[i_star]) if i_star >= 0 else -1
+    l_peak = H.characteristic_l(D[i_star], lmn_star, method="peak") if lmn_star >= 3 else float("nan")
+    bias = {"defect_amplitude_ratio": math.nan, "icosahedral_amplitude_ratio": math.nan,
+            "icosahedral_power_ratio": math.nan, "n_defects": -1}
+    if i_star >= 0:
+        bias = H.mesh_bias(vertices_at(i_star), faces, (cen[i_star], ax[i_star], rot[i_star]), Dt[i_star])
+
+    coords = {
+        "time": ("time", time, dict(sub["time"].attrs) or {"units": "1", "long_name": "gamma_dot (t - t_reverse)"}),
+        "l": ("l", l, {"units": "1", "long_name": "spherical-harmonic degree l"}),
+        "m": ("m", m, {"units": "1", "long_name": "spherical-harmonic order m"}),
+        "axis": ("axis", np.array(["x", "y", "z"]), {"long_name": "Cartesian axis"}),
+    }
+    if "t_tau" in sub.coords or "t_tau" in sub.variables:
+        coords["t_tau"] = ("time", np.asarray(sub["t_tau"].values, dtype=float),
+                           dict(sub["t_tau"].attrs) or {"units": "tau", "long_name": "time in tau = mu R^3 / kappa"})
+    if maps is not None:
+        coords["theta"] = ("theta", theta_g, {"units": "rad", "long_name": "polar angle about the vesicle centre"})
+        coords["phi"] = ("phi", phi_g, {"units": "rad", "long_name": "azimuth about the vesicle centre"})
+
+    tl, tlm, ta = ("time", "l"), ("time", "l", "m"), ("time", "axis")
+    data = {
+        "u_real": _var(tlm, u.real, "1", "real part of the scaled amplitude u_lm, eq. (30); l < 2 unscaled"),
+        "u_imag": _var(tlm, u.imag, "1", "imaginary part of the scaled amplitude u_lm, eq. (30); l < 2 unscaled"),
+        "Delta_l": _var(tl, D, "1", "Delta_l = sum_m |u_lm|^2"),
+        "u_tilde_real": _var(tlm, ut.real, "1", "real part of the wrinkle-amplitude coefficient u~_lm, eq. (32)"),
+        "u_tilde_imag": _var(tlm, ut.imag, "1", "imaginary part of the wrinkle-amplitude coefficient u~_lm, eq. (32)"),
+        "Delta_tilde_l": _var(tl, Dt, "1", "Delta~_l = sum_m |u~_lm|^2"),
+        "sigma": _var(("time",), np.asarray(sub["tension"].values, dtype=float), "kappa R-2",
+                      "global surface tension (from the trajectory)"),
+        "face_tension_mean": _var(("time",), scal["ft_mean"], "kappa R-2", "area-weighted mean of the local tension"),
+        "face_tension_std": _var(("time",), scal["ft_std"], "kappa R-2",
+                                 "area-weighted standard deviation of the local tension"),
+        "A_p_bar": _var(("time",), scal["A_p_bar"], "R2",
+                        "mean square wrinkle amplitude (1/A) sum_i A_p,i^2 A_i, Sec. V.C"),
+        "l_max_nontrivial_t": _var(("time",), lmn, "1", f"largest l with some |u_lm| > {threshold:g} (-1: none)"),
+        "l_star_t": _var(("time",), scal["l_star_t"], "1",
+                         "characteristic wrinkle mode l_*, eq. (31), up to l_max_nontrivial_t"),
+        "t_star": _var((), t_star, "1", "t_*: time >= 0 at which Delta_2 is smallest (gamma_dot (t - t_reverse))"),
+        "l_star": _var((), l_star, "1", "l_* of eq. (31) at t_*"),
+        "l_peak": _var((), l_peak, "1", "dominant wrinkle mode argmax_{3<=l<=l_max} Delta_l at t_* (Sec. V.A)"),
+        "defect_amplitude_ratio": _var((), bias["defect_amplitude_ratio"], "1",
+                                       "rms A_p at mesh defects (valence != 6) / rms A_p, at t_* (mesh bias)"),
+        "icosahedral_amplitude_ratio": _var((), bias["icosahedral_amplitude_ratio"], "1",
+                                            "rms A_p at the 12 icosahedron directions / rms A_p, at t_* (mesh bias)"),
+        "icosahedral_power_ratio": _var((), bias["icosahedral_power_ratio"], "1",
+                                        "mean Delta~_l at l = 6, 10, 12 / mean at l = 8, 14, at t_* (mesh bias)"),
+        "l_max_nontrivial": _var((), np.int32(lmn_star), "1", f"largest l with some |u_lm| > {threshold:g} at t_*"),
+        "ellipsoid_axes": _var(ta, ax, "R", "semi-axes of the least-squares ellipsoid, ordered by the lab axis "
+                               "each is closest to"),
+        "ellipsoid_center": _var(ta, cen, "R", "centre of the least-squares ellipsoid"),
+        "ellipsoid_rotation": (("time", "axis", "principal"), rot, {
+            "units": "1", "long_name": "columns: unit directions of the ellipsoid semi-axes (lab components)"}),
+        "centroid": _var(ta, xc, "R", "volume centroid of the vesicle (expansion centre X_C)"),
+        "R_eq": _var(("time",), scal["R_eq"], "R", "equivalent radius from the enclosed volume (expansion radius)"),
+        "Delta_mesh": _var(("time",), scal["Delta_mesh"], "1", "meshed excess area A / R_eq^2 - 4 pi"),
+    }
+    if maps is not None:
+        data["A_p_map"] = _var(("time", "theta", "phi"), maps, "R",
+                               "wrinkle amplitude A_p(theta, phi) synthesised from u~_lm up to l_max")
+    attrs = netcdf_safe_attrs({k: v for k, v in traj.attrs.items()
+                               if k not in ("Conventions", "title", "source", "history")})
+    cf = cf_attrs(
+        "spherical-harmonic spectra of a vesicle trajectory (Sec. V, eqs. 30-32)", command=command,
+        l_max=l_max, stride=stride, rule=rule, weights=weights, threshold=float(threshold),
+        delta_used=delta_used, delta_source=delta_source, resolvable_l_max=l_res,
+        n_snapshots=nt, t_star_definition="argmin of Delta_2 over time >= 0",
+    )
+    if "history" in traj.attrs:
+        cf["history"] = f"{cf['history']}\n{traj.attrs['history']}"
+    attrs.update(cf)
+    return xr.Dataset(data, coords=coords, attrs=attrs)

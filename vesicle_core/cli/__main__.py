@@ -1,0 +1,7 @@
+"""``python -m vesicle_core.cli``: the ``vesicle`` command."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

@@ -1,0 +1,533 @@
+"""Every run and mesh parameter, defined once: name, default, unit, allowed values and meaning.
+
+``RunConfig`` (run_config.py) takes its fields and checks from :data:`RUN_PARAMETERS`; the workflow takes its
+defaults and its list of keys from here; the config schema's ``run``/``mesh`` sections and the parameter tables
+of config/README.md are generated from these tables (``python -m vesicle_core.model.parameters --write``), and
+tests/test_parameters.py fails when any of them drifts. ``vesicle params`` prints the tables with defaults.
+Cross-parameter rules (N even, no inextensible scheme at Re > 0, ...) live in ``RunConfig.__post_init__``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import ConfigError, check_range
+from ..solver.kernels import DEFAULT_KERNEL, KERNELS
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One parameter. kind: "float", "int", "str" (with choices), "bool"; ``nullable`` allows None ("null")."""
+
+    name: str
+    default: object
+    kind: str
+    help: str
+    unit: str = ""
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    choices: tuple = ()
+    nullable: bool = False
+    also: tuple = ()  # extra string values a number parameter accepts (dt: "power", "formula")
+    multiple_of: int | None = None
+    workflow: bool = True  # set per case by the workflow's config (chi comes from the sweep instead)
+
+    def check(self, value):
+        """The value if allowed, else ConfigError naming the parameter and its allowed values."""
+        if value is None:
+            if self.nullable:
+                return None
+            raise ConfigError(f"{self.name} must be set ({self.allowed()}), got None")
+        if self.kind == "bool":
+            if not isinstance(value, bool):
+                raise ConfigError(f"{self.name} must be true or false, got {value!r}")
+            return value
+        if self.kind == "str":
+            if value not in self.choices:
+                raise ConfigError(f"{self.name} must be one of {self.choices}, got {value!r}")
+            return value
+        if isinstance(value, str):
+            if value in self.also:
+                return value
+            raise ConfigError(f"{self.name} must be {self.allowed()}, got {value!r}")
+        v = check_range(self.name, value, self.lo, self.hi, lo_open=self.lo_open, integer=self.kind == "int")
+        if self.multiple_of and v % self.multiple_of:
+            raise ConfigError(f"{self.name} must be a multiple of {self.multiple_of}, got {v}")
+        return v
+
+    def allowed(self) -> str:
+        """The allowed values in words, as the docs show them."""
+        if self.kind == "bool":
+            text = "true | false"
+        elif self.kind == "str":
+            text = " | ".join(self.choices)
+        else:
+            left = "(" if self.lo_open else "["
+            lo = "-inf" if self.lo is None else _num(self.lo)
+            hi = "inf)" if self.hi is None else f"{_num(self.hi)}]"
+            text = ("integer " if self.kind == "int" else "") + f"{left}{lo}, {hi}"
+            if self.multiple_of:
+                text += f", multiple of {self.multiple_of}"
+            if self.also:
+                text = " | ".join(f'"{a}"' for a in self.also) + " | " + text
+        return text + (" | null" if self.nullable else "")
+
+    def json_schema(self) -> dict:
+        """The JSON-schema fragment of this parameter (no default: defaults come from this table)."""
+        if self.kind == "bool":
+            out = {"type": "boolean"}
+        elif self.kind == "str":
+            out = {"type": "string", "enum": list(self.choices)}
+        else:
+            out = {"type": "integer" if self.kind == "int" else "number"}
+            if self.lo is not None:
+                out["exclusiveMinimum" if self.lo_open else "minimum"] = self.lo
+            if self.hi is not None:
+                out["maximum"] = self.hi
+            if self.multiple_of:
+                out["multipleOf"] = self.multiple_of
+            if self.also:
+                out = {"oneOf": [{"type": "string", "enum": list(self.also)}, out]}
+        if self.nullable:
+            out = {"oneOf": [{"type": "null"}, out]}
+        desc = self.help + (f" [{self.unit}]" if self.unit else "")
+        return {**out, "description": desc}
+
+
+def _num(x) -> str:
+    if isinstance(x, int) or (float(x).is_integer() and abs(x) < 1e5):
+        return str(int(x))
+    return f"{x:g}"
+
+
+_SCHEMES = ("explicit", "projection", "inextensible")
+# A checkpoint is also written once this much wall time has passed since the last one, whatever checkpoint_every
+# says: an adaptive 256^3 run takes ~400 steps in ~1 h, so the step count alone would leave it without any
+# checkpoint, and a job killed without a signal (node failure, SIGKILL) would lose all of it. A 10242-vertex
+# checkpoint took 4.8 ms to write (median of 5, two 256^3 runs on the machine).
+CHECKPOINT_WALL_S = 600.0
+_KERNELS = tuple(KERNELS)
+# the sharp coupling's floor, chosen from the resolution table alone (docs/solver.md, "Sharpened coupling")
+SHARP_FLOOR = 0.01
+
+#: parameters of one IBM run (``vesicle run``, ``RunConfig``), in solver units (R, kappa, tau = mu R^3 / kappa)
+RUN_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter(
+        "chi", 67.0, "float", "dimensionless extensional rate gamma_dot mu R^3 / kappa", "1", 0.0, 1e7, workflow=False
+    ),
+    Parameter("N", 32, "int", "grid nodes per axis", "", 8, 4096, multiple_of=2),
+    Parameter(
+        "L",
+        5.0,
+        "float",
+        "periodic box edge (Table III: 90 um / R = 5.386 at R = 16.71 um, 5.0 at R = 18 um)",
+        "R",
+        2.0,
+        1000.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "Re",
+        0.0,
+        "float",
+        "Reynolds number gamma_dot rho R^2 / mu; 0 = steady Stokes (Table III gives ~2e-4)",
+        "",
+        0.0,
+        10.0,
+    ),
+    Parameter(
+        "Lambda",
+        None,
+        "float",
+        "tension modulus of eq. (A5); null = the default for chi and scheme "
+        "(simulate.default_lambda: 1.5e4 chi explicit, 1.5e3 chi projection; inextensible: the area-stretch "
+        "modulus of the constraint, 5e4 chi, floor 1e6)",
+        "kappa/R^2",
+        0.0,
+        1e12,
+        nullable=True,
+    ),
+    Parameter("K_volume", 1.0e7, "float", "global volume penalty; holds V without costing dt", "kappa/R^3", 0.0, 1e12),
+    Parameter("K_area", 0.0, "float", "global area penalty", "kappa/R^2", 0.0, 1e12),
+    Parameter(
+        "area_model",
+        "voronoi",
+        "str",
+        "vertex area in the bending energy (barycentric: the paper's)",
+        choices=("voronoi", "barycentric"),
+    ),
+    Parameter(
+        "kernel",
+        DEFAULT_KERNEL,
+        "str",
+        "regularised delta: Peskin's 4-point (eq. 27), Roma-Peskin-Berger 3-point, "
+        "Bao-Kaye-Peskin 6-point (kernels.py)",
+        choices=_KERNELS,
+    ),
+    Parameter(
+        "coupling",
+        "kernel",
+        "str",
+        "fluid-membrane coupling. kernel: spread and interpolate with the kernel (eqs. 16, 28; the paper's); "
+        "sharp: also divide the spread force's spectrum by the kernel's squared Fourier transform, floored at "
+        "sharp_floor (window deconvolution: resolves ~2x higher l per grid node; needs a mesh edge of ~h, "
+        "docs/solver.md)",
+        choices=("kernel", "sharp"),
+    ),
+    Parameter(
+        "sharp_floor",
+        SHARP_FLOOR,
+        "float",
+        "sharp coupling: floor on the kernel's squared Fourier transform (the largest amplification is "
+        "1/sharp_floor); chosen by the resolution table (docs/solver.md)",
+        "",
+        1e-4,
+        1.0,
+    ),
+    Parameter(
+        "scheme",
+        "projection",
+        "str",
+        "time integrator (integrators.py). explicit: the paper's area penalty alone; "
+        "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
+        "tension per triangle solved each step from the local area constraint, adaptive steps (docs/solver.md)",
+        choices=_SCHEMES,
+    ),
+    Parameter(
+        "projection_refresh",
+        10,
+        "int",
+        "steps between recomputations of cached mobility data (projection, inextensible)",
+        "",
+        1,
+        10000,
+    ),
+    Parameter("stretch", 1.0, "float", "longest forward-flow phase before the reversal", "gamma_dot t", 0.0, 1e4),
+    Parameter(
+        "stationary_tol",
+        0.0,
+        "float",
+        "reverse early once the relative shape change per gamma_dot t is below this (0 = never)",
+        "",
+        0.0,
+        1.0,
+    ),
+    Parameter("t_end", 1.5, "float", "duration after the reversal", "gamma_dot t", 0.0, 1e4),
+    Parameter(
+        "dt",
+        "power",
+        "float",
+        "time step: power iteration on the linearised operator, the stability "
+        "formula of simulate.formula_dt (area penalty 40 h/Lambda, bending 13-20 h^3), or fixed; the "
+        "inextensible scheme re-estimates it every step",
+        "tau",
+        0.0,
+        1.0,
+        lo_open=True,
+        also=("power", "formula"),
+    ),
+    Parameter(
+        "dt_safety",
+        0.8,
+        "float",
+        "fraction of the stability limit used as the step. The limit is measured "
+        "at the initial shape; a vesicle that deforms strongly (Delta ~ 1) stiffens as it stretches and needs "
+        "~0.4 with the explicit and projection schemes. An unstable run stops with exit status 3 and "
+        "failure.nc",
+        "",
+        0.0,
+        1.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "output_every",
+        0.02,
+        "float",
+        "interval between stored frames (the time resolution of every curve)",
+        "gamma_dot t",
+        0.0,
+        1e4,
+        lo_open=True,
+    ),
+    Parameter(
+        "checkpoint_every",
+        2000,
+        "int",
+        f"steps between checkpoints; one is also written after every {CHECKPOINT_WALL_S / 60:g} min of wall time "
+        "and on SIGINT/SIGTERM (a restarted job resumes from the last one)",
+        "",
+        1,
+        None,
+    ),
+    Parameter(
+        "max_drift",
+        0.05,
+        "float",
+        "relative area or volume drift that stops a run as unstable",
+        "",
+        0.0,
+        1.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "backend",
+        "numpy",
+        "str",
+        "array module; cupy needs a GPU (and resources.simulate.gpu: 1)",
+        choices=("numpy", "cupy", "auto"),
+    ),
+    Parameter(
+        "dtype",
+        "float64",
+        "str",
+        "precision of grid fields and FFTs (positions and forces stay float64)",
+        choices=("float64", "float32"),
+    ),
+    Parameter("fft_workers", 1, "int", "CPU FFT threads; also the workflow job's threads", "", 1, 256),
+    Parameter(
+        "cg_tol",
+        1.0e-5,
+        "float",
+        "inextensible: CG tolerance, rms area strain of the residual; the next "
+        "step corrects it, so it does not accumulate (docs/solver.md)",
+        "",
+        0.0,
+        1e-2,
+        lo_open=True,
+    ),
+    Parameter(
+        "cg_maxiter",
+        200,
+        "int",
+        "inextensible: CG iterations before the run stops (NumericalInstability)",
+        "",
+        1,
+        100000,
+    ),
+    Parameter(
+        "cg_precond",
+        "compliance",
+        "str",
+        "inextensible: CG preconditioner. local adds the IBM's measured "
+        "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
+        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 it halves the "
+        "elongated vesicle's iterations (Delta ~ 1: 2.1x faster through the late stretch) but slows the "
+        "quasi-spherical one (no fewer warm-step iterations): compliance there",
+        choices=("compliance", "local"),
+    ),
+    Parameter(
+        "tension_space",
+        "triangle",
+        "str",
+        "inextensible: the tension's space. triangle: one tension per triangle, every triangle's area held "
+        "(near-null checkerboard modes); harmonic: a Galerkin tension in real spherical harmonics up to "
+        "tension_l_max on the reference mesh's sphere coordinates, the projection of the area change on that "
+        "space held, CG preconditioned by the measured area rate per l (docs/solver.md, A harmonic tension)",
+        choices=("triangle", "harmonic"),
+    ),
+    Parameter(
+        "tension_l_max",
+        None,
+        "int",
+        "tension_space harmonic: highest l of the tension; null = half the mesh's resolvable l "
+        "(pi R / mean edge / 2: 10 at 642 vertices, 20 at 2562, 40 at 10242)",
+        "",
+        0,
+        200,
+        nullable=True,
+    ),
+    Parameter(
+        "mesh_ale",
+        "none",
+        "str",
+        "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
+        "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain",
+        choices=("none", "area"),
+    ),
+    Parameter(
+        "dt_growth",
+        0.1,
+        "float",
+        "inextensible, adaptive dt: e-folds of the fastest wrinkle mode the grid "
+        "resolves per step, and dt_growth/10 strain units of the background flow per step",
+        "",
+        0.0,
+        1.0,
+        lo_open=True,
+    ),
+    Parameter(
+        "seed_spectrum",
+        "mesh",
+        "str",
+        "wrinkle seed at the reversal: mesh noise only, or the PA's thermal spectrum (seeding.py)",
+        choices=("mesh", "thermal"),
+    ),
+    Parameter("seed_scale", 1.0, "float", "thermal seed: factor on k_B T (the variance of every mode)", "", 0.0, 1e6),
+    Parameter("seed", 0, "int", "thermal seed: random draw (the PA's seed)", "", 0, 2**31 - 1),
+    Parameter(
+        "store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, node_uz)"
+    ),
+)
+
+#: parameters of a vesicle mesh (``vesicle mesh``, the workflow's ``mesh`` section); Delta comes from the sweep
+MESH_PARAMETERS: tuple[Parameter, ...] = (
+    Parameter(
+        "family",
+        "quasiuniform",
+        "str",
+        "mesh family (quasiuniform has no icosahedral bias; config/README.md, Why quasi-uniform)",
+        choices=("icosphere", "quasiuniform"),
+    ),
+    Parameter(
+        "level",
+        3,
+        "int",
+        "icosphere level: 10 4^level + 2 vertices (42, 162, 642, 2562, 10242, 40962 ...); also the "
+        "default vertex count of the quasi-uniform family",
+        "",
+        0,
+        9,
+    ),
+    Parameter(
+        "n_vertices",
+        None,
+        "int",
+        "vertex count of the quasi-uniform family (null: that of level); ignored by the icosphere",
+        "",
+        12,
+        20000000,
+        nullable=True,
+    ),
+    Parameter("seed", 0, "int", "seed of the quasi-uniform family", "", 0, 2**31 - 1),
+    Parameter("lloyd_steps", 8, "int", "Lloyd relaxation steps (quasi-uniform)", "", 0, 1000),
+    Parameter(
+        "radius",
+        1.0,
+        "float",
+        "equivalent radius, volume 4/3 pi R^3 (the solver's length unit: keep 1)",
+        "R",
+        0.0,
+        None,
+        lo_open=True,
+    ),
+)
+
+RUN = {p.name: p for p in RUN_PARAMETERS}
+MESH = {p.name: p for p in MESH_PARAMETERS}
+#: the keys the workflow passes per case, in table order
+WORKFLOW_RUN_KEYS = tuple(p.name for p in RUN_PARAMETERS if p.workflow)
+
+
+def defaults(table=RUN_PARAMETERS, workflow_only=False) -> dict:
+    return {p.name: p.default for p in table if p.workflow or not workflow_only}
+
+
+def check_all(values: dict, table=RUN_PARAMETERS, where: str = "") -> dict:
+    """Check a dict of parameters against a table: unknown names and bad values raise ConfigError."""
+    known = {p.name: p for p in table}
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        raise ConfigError(f"{where}unknown parameter(s) {unknown}; allowed: {sorted(known)}")
+    return {k: known[k].check(v) for k, v in values.items()}
+
+
+def schema_section(table, title: str) -> dict:
+    """The ``properties`` of a schema section generated from a table."""
+    return {
+        "type": "object",
+        "additionalProperties": False,
+        "description": title,
+        "properties": {p.name: p.json_schema() for p in table if p.workflow},
+    }
+
+
+def markdown_table(table, with_default=False) -> str:
+    head = ["parameter", "unit", "allowed", "meaning"] + (["default"] if with_default else [])
+    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for p in table:
+        cells = [f"`{p.name}`", p.unit or "-", p.allowed(), p.help]
+        if with_default:
+            cells.append(
+                "null"
+                if p.default is None
+                else str(p.default).lower()
+                if isinstance(p.default, bool)
+                else str(p.default)
+            )
+        rows.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    return "\n".join(rows)
+
+
+# --------------------------------------------------------------------------- generated files
+SCHEMA_FILE = "workflow/schemas/run_parameters.schema.yaml"
+README_FILE = "config/README.md"
+BEGIN, END = "<!-- BEGIN generated: {} -->", "<!-- END generated: {} -->"
+
+
+def schema_text() -> str:
+    import yaml
+
+    doc = {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "description": "GENERATED by `python -m vesicle_core.model.parameters --write` from "
+        "vesicle_core/model/parameters.py; do not edit",
+        "$defs": {
+            "run": schema_section(RUN_PARAMETERS, "parameters of 'vesicle run' except chi (from the sweep)"),
+            "mesh": schema_section(MESH_PARAMETERS, "parameters of 'vesicle mesh'"),
+        },
+    }
+    return yaml.safe_dump(doc, sort_keys=False, width=120)
+
+
+def readme_block(name: str) -> str:
+    table = {"run": RUN_PARAMETERS, "mesh": MESH_PARAMETERS}[name]
+    return f"{BEGIN.format(name)}\n{markdown_table(table)}\n{END.format(name)}"
+
+
+def replace_block(text: str, name: str) -> str:
+    b, e = BEGIN.format(name), END.format(name)
+    if b not in text or e not in text:
+        raise ConfigError(f"{README_FILE} lacks the markers {b!r} ... {e!r}")
+    head, rest = text.split(b, 1)
+    _, tail = rest.split(e, 1)
+    return head + readme_block(name) + tail
+
+
+def write_generated(root=".") -> list[str]:
+    """Regenerate the schema fragment and the README tables; returns the files that changed."""
+    from pathlib import Path
+
+    from ..io import atomic_write_text
+
+    changed = []
+    root = Path(root)
+    schema = root / SCHEMA_FILE
+    if not schema.exists() or schema.read_text() != schema_text():
+        atomic_write_text(schema_text(), schema)
+        changed.append(str(schema))
+    readme = root / README_FILE
+    text = readme.read_text()
+    new = replace_block(replace_block(text, "run"), "mesh")
+    if new != text:
+        atomic_write_text(new, readme)
+        changed.append(str(readme))
+    return changed
+
+
+def main(argv=None):
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m vesicle_core.model.parameters", description=__doc__.splitlines()[0])
+    p.add_argument("--write", action="store_true", help="regenerate the schema fragment and config/README.md tables")
+    a = p.parse_args(argv)
+    if a.write:
+        for f in write_generated():
+            print(f"wrote {f}")
+    else:
+        print(markdown_table(RUN_PARAMETERS, with_default=True))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

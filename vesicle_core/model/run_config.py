@@ -1,0 +1,129 @@
+"""The configuration of one IBM run: :class:`RunConfig`, the default tension modulus and the YAML loader.
+
+``RunConfig`` is a frozen dataclass generated from :data:`vesicle_core.model.parameters.RUN_PARAMETERS` (fields,
+defaults,
+ranges and help live in that one table, which also writes the workflow's schema); :class:`_RunConfigRules` adds
+the rules that tie the fields together and the derived quantities (h, Lambda_eff, rho_bar, the time scale).
+
+Units are the solver's: lengths in R, mu = kappa = 1, time in tau = mu R^3/kappa; the background rate is chi.
+All durations are in gamma_dot t (= chi t/tau) when chi > 0, in tau when chi = 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, field, fields, make_dataclass
+
+from ..errors import ConfigError
+
+
+class _RunConfigRules:
+    """Parameters of one IBM run, in solver units (see module docstring): the fields, defaults and ranges of
+    :data:`vesicle_core.model.parameters.RUN_PARAMETERS`, checked on creation, plus the rules that tie them together."""
+
+    def __post_init__(self):
+        from .parameters import RUN_PARAMETERS
+
+        for p in RUN_PARAMETERS:  # a frozen dataclass: store the normalised value (e.g. 128.0 -> 128)
+            object.__setattr__(self, p.name, p.check(getattr(self, p.name)))
+        if self.scheme == "inextensible" and self.Re > 0:
+            raise ConfigError(f"scheme 'inextensible' solves steady Stokes (Re = 0); got Re = {self.Re:g}")
+        if self.tension_space == "harmonic" and self.cg_precond == "local":
+            raise ConfigError("tension_space 'harmonic' has its own preconditioner (the measured area rate per l); "
+                              "cg_precond 'local' applies to tension_space 'triangle' only")
+        if self.mesh_ale != "none" and self.tension_space != "harmonic":
+            raise ConfigError("mesh_ale 'area' applies to tension_space 'harmonic' only (the triangle tension holds "
+                              "every triangle's area itself)")
+        if self.chi == 0 and self.stretch > 0:
+            raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
+        if self.seed_spectrum != "mesh" and self.stationary_tol > 0:
+            raise ConfigError("seed_spectrum 'thermal' needs a fixed stretch (stationary_tol = 0): the seed goes on "
+                              "the shape before the frame at the reversal")
+
+    @property
+    def h(self) -> float:
+        return self.L / self.N
+
+    @property
+    def Lambda_eff(self) -> float:
+        return default_lambda(self.chi, self.scheme) if self.Lambda is None else float(self.Lambda)
+
+    @property
+    def rho_bar(self) -> float:
+        """Density in solver units: Re / chi (App. B with time in tau)."""
+        return self.Re / self.chi if self.chi > 0 else 0.0
+
+    def time_scale(self) -> float:
+        """tau per unit of the configured durations: 1/chi, or 1 when chi = 0."""
+        return 1.0 / self.chi if self.chi > 0 else 1.0
+
+    @classmethod
+    def from_dict(cls, d: dict) -> RunConfig:
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - names)
+        if unknown:
+            raise ConfigError(f"unknown run parameter(s) {unknown}; allowed: {sorted(names)}")
+        return cls(**d)
+
+    def as_attrs(self) -> dict:
+        out = {}
+        for k, v in asdict(self).items():
+            out[k] = "default" if v is None else v
+        out["Lambda_eff"] = self.Lambda_eff
+        out["h"] = self.h
+        return out
+
+
+def _run_config_class():
+    from .parameters import RUN_PARAMETERS
+
+    types = {"float": float, "int": int, "str": str, "bool": bool}
+    spec = [(p.name, types[p.kind] | None if p.nullable else types[p.kind], field(default=p.default))
+            for p in RUN_PARAMETERS]
+    cls = make_dataclass("RunConfig", spec, bases=(_RunConfigRules,), frozen=True)
+    cls.__module__, cls.__doc__ = __name__, _RunConfigRules.__doc__  # so pickle and help() find it here
+    return cls
+
+
+RunConfig = _run_config_class()
+
+
+SCHEMES = ("explicit", "projection", "inextensible")
+
+
+def default_lambda(chi: float, scheme: str = "explicit") -> float:
+    """Default tension modulus of (A5) [kappa/R^2].
+
+    explicit:   the penalty alone holds the area, so the area strain sigma/Lambda must stay below ~0.2%.
+                The stretched steady state has sigma ~ 26 chi kappa/R^2 (1770 measured at chi = 67), so
+                Lambda = 1.5e4 chi with a floor of 1e5 (1e6 at chi = 67, 4e6 at chi = 268), strain ~0.18%.
+    projection: a global multiplier carries the mean tension and holds the total area exactly; the local
+                penalty only has to resist tension *differences* along the membrane, so it is 10x softer
+                (1.5e3 chi, floor 1e4), which makes the explicit step limit 40 h/Lambda 10x larger.
+    inextensible: Lambda is the area-stretch modulus of the constraint (strain sigma/Lambda), treated
+                implicitly, so it costs no time step: 5e4 chi (floor 1e6) keeps the strain near 5e-4.
+    """
+    if scheme == "inextensible":
+        return max(1.0e6, 5.0e4 * chi)
+    if scheme == "projection":
+        return max(1.0e4, 1.5e3 * chi)
+    return max(1.0e5, 1.5e4 * chi)
+
+
+def load_config(path) -> RunConfig:
+    import yaml
+
+    from ..io import safe_load_unique
+
+    try:
+        with open(path) as fh:
+            d = safe_load_unique(fh) or {}
+    except FileNotFoundError:
+        raise ConfigError(f"parameter file {path} does not exist") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"parameter file {path} is not valid YAML: {exc}") from None
+    if not isinstance(d, dict):
+        raise ConfigError(f"parameter file {path} must hold a mapping of run parameters")
+    try:
+        return RunConfig.from_dict(d)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None

@@ -1,0 +1,204 @@
+r"""Thermal velocity noise of the fluctuating immersed boundary method, balanced against this grid's own mobility.
+
+Fluctuation-dissipation on the collocated grid
+----------------------------------------------
+The steady coupled mobility of :class:`~vesicle_core.solver.mobility.IBMMobility` is
+
+    M = J A S,    A = xi W / lam   (symbol per mode: xi_k W_k / lam_k, zero at k = 0, xi_k = I where g_k = 0)
+
+with J the interpolation (plain weighted sum), S = J^T / h^3 the spreading (:mod:`vesicle_core.solver.ibm`), lam_k and
+g_k the symbols of the 7-point Laplacian and of the central-difference gradient, xi_k = I - g g^T / |g|^2 the
+discrete Leray projector and W the optional force filter of the sharpened coupling (1 without it)
+(:mod:`vesicle_core.solver.stokes`). A is real, symmetric and positive semi-definite on the grid, and its symmetric
+square
+root is A^{1/2} = xi (W / lam)^{1/2} (xi is a projector commuting with the scalar W / lam): the solver's
+:meth:`~vesicle_core.solver.stokes.StokesSolver.sqrt_velocity`. The noise displacement field over a step dt is
+
+    dU = sqrt(2 kT dt / h^3) A^{1/2} z,     z white: independent N(0, 1) per node and component,
+
+and its interpolation J dU to any Lagrangian points has covariance
+
+    2 kT dt / h^3 J A^{1/2} A^{1/2} J^T = 2 kT dt J A (J^T / h^3) = 2 kT dt J A S = 2 kT dt M
+
+exactly, for every configuration and both couplings (``W``: sqrt(W) in the noise symbol). The Fourier symbol is
+applied to the real FFT of real white noise, so the half spectrum's Hermitian symmetry is kept by the real
+inverse FFT, the k = 0 mode is zero (no mean flow, as in the deterministic solve) and the 7 Nyquist-type modes
+get the identity projector, like the deterministic solve. Nothing here uses a staggered-grid stochastic stress:
+on this collocated grid |g_k|^2 != lam_k, and the divergence of a white stress would give the wrong covariance
+(``tests/test_fluctuations.py`` shows such a symbol failing the test). Cost: one 3-component FFT round trip and
+3 N^3 normal deviates per step.
+
+Units: kT in kappa (the solver units, mu = 1, lengths in R, time in tau = mu R^3 / kappa), so kT = k_B T / kappa
+(0.0405 at 293 K, kappa = 1e-19 J). kT = 0 gives a zero field.
+
+Reproducible numbers
+--------------------
+:func:`noise_generator` returns ``numpy.random.Generator(Philox)`` keyed by the seed, its counter starting at
+[0, 0, step, stream]: a counter-based stream, so the numbers of a step depend only on (seed, step, stream), never
+on what was drawn before (a resumed run draws the same noise; steps use disjoint counter ranges up to 2^64 blocks
+of 4 words per step). The deviates are drawn on the host in the backend's dtype (float32 and float64 draws
+differ) and copied to the device on CuPy, so NumPy and CuPy runs get the same numbers.
+
+Drift
+-----
+A configuration-dependent mobility adds the drift kT div_X M to the Ito equation (Delong et al., J. Chem. Phys.
+140, 134110 (2014)). :func:`mobility_divergence` measures it by central differences (6 n solves; a reference);
+:func:`rfd_drift` is their random finite difference (two solves, unbiased in the mean), the form an integrator
+uses. docs/thermal.md reports the drift's size for this kernel and grid: it does not vanish on a membrane.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from ..errors import ConfigError, check_range
+
+_U64 = 2**64 - 1
+
+
+def _check_counter(name, value):
+    """A non-negative integer below 2^64 (numbers.Integral, or a float with an integer value), else ConfigError."""
+    msg = f"{name} must be an integer in [0, {_U64}], got {value!r}"
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ConfigError(msg)
+    if isinstance(value, numbers.Integral):
+        v = int(value)
+    else:
+        f = float(value)
+        if not np.isfinite(f) or not f.is_integer():
+            raise ConfigError(msg)
+        v = int(f)
+    if not 0 <= v <= _U64:
+        raise ConfigError(msg)
+    return v
+
+
+def noise_generator(seed, step, stream=0):
+    """The generator of one step's noise: ``Generator(Philox(key=seed, counter=[0, 0, step, stream]))``.
+
+    seed : integer in [0, 2^64 - 1] (the run's noise seed); step : the step counter, integer >= 0; stream : an
+    integer tag separating independent uses within one step (0: the velocity noise).
+    """
+    seed = _check_counter("seed", seed)
+    step = _check_counter("step", step)
+    stream = _check_counter("stream", stream)
+    counter = np.array([0, 0, step, stream], dtype=np.uint64)
+    return np.random.Generator(np.random.Philox(key=seed, counter=counter))
+
+
+class ThermalNoise:
+    """Fluctuating-Stokes noise on one :class:`~vesicle_core.solver.stokes.StokesSolver` (module docstring).
+
+    ``displacement(dt, step)`` is the grid field sqrt(2 kT dt / h^3) xi (W / lam)^{1/2} z whose interpolation to
+    the membrane (``coupler.interpolate``) is the thermal displacement over dt, covariance 2 kT dt M. The
+    corresponding velocity is that field / dt (covariance 2 kT M / dt).
+
+    stokes : the run's StokesSolver (its grid, backend, symbols and force filter W are used as they are).
+    kT : k_B T / kappa >= 0. seed : integer in [0, 2^64 - 1].
+    """
+
+    def __init__(self, stokes, kT, seed=0):
+        self.stokes = stokes
+        self.grid = stokes.grid
+        self.backend = stokes.backend
+        self.kT = float(check_range("kT", kT, 0.0, None))
+        self.seed = _check_counter("seed", seed)
+        self.dtype = np.dtype(self.backend.dtype)
+        self._host = None  # host buffer of the white noise (reused)
+        self.n_draws = 0
+
+    def amplitude(self, dt):
+        """sqrt(2 kT dt / h^3): the factor in front of A^{1/2} z."""
+        dt = float(check_range("dt", dt, 0.0, None, lo_open=True))
+        return float(np.sqrt(2.0 * self.kT * dt / self.grid.h**3))
+
+    def white(self, step, stream=0):
+        """z: independent N(0, 1) per node and component, (3, N, N, N) host array of the backend dtype, drawn by
+        :func:`noise_generator` (seed, step, stream). Overwritten by the next call."""
+        if self._host is None:
+            self._host = np.empty(self.grid.field_shape, dtype=self.dtype)
+        noise_generator(self.seed, step, stream).standard_normal(dtype=self.dtype, out=self._host)
+        self.n_draws += 1
+        return self._host
+
+    def displacement(self, dt, step, out=None):
+        """Grid field (3, N, N, N) of the thermal displacement over dt at step ``step`` (backend array).
+
+        Interpolated to any points X it has mean 0 and covariance 2 kT dt M(X); zero when kT = 0.
+        ``out``: a grid buffer to write into (as in ``StokesSolver.velocity``).
+        """
+        scale = self.amplitude(dt)
+        if scale == 0.0:
+            if out is None:
+                return self.backend.zeros(self.grid.field_shape)
+            out[...] = 0
+            return out
+        z = self.white(step)
+        if self.backend.is_gpu:  # same numbers as on NumPy: drawn on the host, copied
+            z = self.backend.asarray(z, dtype=self.dtype)
+        return self.stokes.sqrt_velocity(z, scale, out=out)
+
+    def velocity(self, dt, step, out=None):
+        """The noise velocity of the step, displacement / dt (covariance 2 kT M / dt after interpolation)."""
+        u = self.displacement(dt, step, out=out)
+        u *= 1.0 / float(dt)
+        return u
+
+
+def mobility_matrix(mobility, X):
+    """Dense M(X) (3 n, 3 n) of an :class:`~vesicle_core.solver.mobility.IBMMobility` at the points X (n, 3), by unit
+    forces (3 n Stokes solves), as a float64 host array; index 3 i + c is point i, component c."""
+    xp = mobility.backend.xp
+    X = np.asarray(X, dtype=np.float64)
+    n = X.shape[0]
+    mobility.prepare(xp.asarray(X))
+    out = np.empty((3 * n, 3 * n))
+    for j in range(3 * n):
+        F = np.zeros((n, 3))
+        F.flat[j] = 1.0
+        out[:, j] = mobility.backend.asnumpy(mobility.apply(xp.asarray(F))).reshape(-1)
+    return out
+
+
+def mobility_divergence(mobility, X, eps=1e-4):
+    """div_X M at the points X (n, 3): (div M)_i = sum_j d M_ij / d X_j, by central differences of step eps (in
+    the grid's length unit), 6 n Stokes solves; returns (n, 3). kT times this is the Ito drift of the
+    overdamped equation dX = M F dt + kT div M dt + sqrt(2 kT dt) M^{1/2} dW."""
+    xp = mobility.backend.xp
+    X = np.asarray(X, dtype=np.float64)
+    n = X.shape[0]
+    div = np.zeros(3 * n)
+    for j in range(3 * n):
+        F = np.zeros((n, 3))
+        F.flat[j] = 1.0
+        col = []
+        for s in (1.0, -1.0):
+            Xs = X.copy()
+            Xs.flat[j] += s * eps
+            mobility.prepare(xp.asarray(Xs))
+            col.append(mobility.backend.asnumpy(mobility.apply(xp.asarray(F))).reshape(-1))
+        div += (col[0] - col[1]) / (2.0 * eps)
+    return div.reshape(n, 3)
+
+
+def rfd_drift(mobility, X, kT, seed, step, delta=1e-4, stream=1):
+    """Random finite difference of the Ito drift (Delong et al. 2014): kT / delta [M(X + delta W / 2) W -
+    M(X - delta W / 2) W] with W (n, 3) standard normal from :func:`noise_generator` (seed, step, ``stream``; stream
+    1 by default, independent of the velocity noise's stream 0). Its mean over W is kT div_X M + O(delta^2); two
+    Stokes solves. delta in the grid's length unit (R), small against h. Leaves the mobility prepared at
+    X - delta W / 2: call ``mobility.prepare(X)`` again before using it at X."""
+    kT = float(check_range("kT", kT, 0.0, None))
+    delta = float(check_range("delta", delta, 0.0, None, lo_open=True))
+    xp = mobility.backend.xp
+    X = np.asarray(X, dtype=np.float64)
+    W = noise_generator(seed, step, stream).standard_normal(X.shape)
+    out = []
+    for s in (0.5, -0.5):
+        mobility.prepare(xp.asarray(X + s * delta * W))
+        out.append(mobility.backend.asnumpy(mobility.apply(xp.asarray(W))))
+    return kT / delta * (out[0] - out[1])
+
+
+__all__ = ["ThermalNoise", "noise_generator", "mobility_matrix", "mobility_divergence", "rfd_drift"]

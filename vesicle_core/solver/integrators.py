@@ -1,0 +1,264 @@
+"""Time integrators of the membrane, behind one small interface.
+
+Every scheme is a class with ``step(state, X, F, geo, dt, rate) -> dX`` (the displacement of the vertices
+over one step, background flow included) and ``next_dt(state, geo)`` (the step it wants next; fixed-step
+schemes return their constant step). The coupled IBM enters only through the solver's mobility
+(``velocity = M(X) F``, :class:`vesicle_core.solver.mobility.IBMMobility`) and, for the fixed-step schemes, the
+time-integrated displacement of eq. (29) (finite Re).
+
+* :class:`Explicit`: the paper's method, forward Euler with the stiff area penalty (A5).
+* :class:`Projection`: explicit Euler plus a global tension multiplier that holds the total area exactly,
+  with a 10x softer local penalty.
+* :class:`Inextensible`: a tension per triangle solved every step from the linearised local area
+  constraint (:mod:`vesicle_core.solver.tension`); no penalty stiffness, so the step follows the physics: the
+  fastest wrinkle growth of the perturbation analysis, the bending and tension stability limits and the
+  background flow.
+  ``tension_space: harmonic`` carries the tension in real spherical harmonics instead
+  (:mod:`vesicle_core.solver.tension_harmonic`), optionally with a tangential mesh motion (``mesh_ale: area``).
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..model.flow import background_velocity
+from .kernels import DEFAULT_KERNEL
+
+
+class Integrator(abc.ABC):
+    """Interface: a fixed step ``dt`` unless ``adaptive``; state kept on the run's State object."""
+
+    name = "base"
+    adaptive = False
+
+    def __init__(self, solver, dt: float, X0=None):
+        self.solver = solver
+        self.cfg = solver.cfg
+        self.dt = dt
+        self.X0 = X0  # the reference mesh's vertices (material coordinates of tension_space: harmonic)
+
+    def next_dt(self, state, geo) -> float:
+        return self.dt
+
+    @abc.abstractmethod
+    def step(self, state, X, F, geo, dt, rate):
+        """Displacement of the vertices over one step of length dt (background flow at ``rate`` included)."""
+
+    def face_tension(self, state, geo):
+        """Per-triangle tension for the output frames [kappa/R^2]."""
+        from . import membrane as B
+
+        mem = self.solver.membrane
+        return B.local_tension(geo, mem.ref, mem.Lambda)
+
+    def stats(self) -> dict:
+        return {}
+
+
+class Explicit(Integrator):
+    """X^{n+1} = X^n + J Gamma^n + u_inf dt, eq. (29), with the penalty (A5) in F."""
+
+    name = "explicit"
+
+    def step(self, state, X, F, geo, dt, rate):
+        dX = self.solver.induced_displacement(X, F, dt)
+        if self.cfg.chi > 0:
+            dX = dX + background_velocity(X, rate) * dt
+        return dX
+
+
+class Projection(Integrator):
+    """Step with a global tension multiplier sigma_g that keeps the total area at A0.
+
+    The membrane force gets the extra term -sigma_g grad A (a uniform tension). sigma_g is predicted
+    from the previous step, then corrected by d_sigma so that the linearised area change of the step
+    cancels the current area error: grad A . dX = A0 - A. The correction's flow uses w = M grad A,
+    refreshed every ``projection_refresh`` steps (only the small correction d_sigma uses the cached
+    w, so the error is second order). Costs one extra Stokes solve per refresh. w is the steady-Stokes
+    response; at finite Re the main solve still uses the exponential update (23), and the correction's
+    flow is then off by the fluid's inertial relaxation, O(Re) (Re ~ 2e-4 in the paper).
+    """
+
+    name = "projection"
+
+    def step(self, state, X, F, geo, dt, rate):
+        solver, cfg = self.solver, self.cfg
+        xp = solver.xp
+        A0 = solver.membrane.ref.area
+        gradA = -geo.H  # (V, 3): dA/dX = -H, eq. (24)
+        refresh = state.w is None or state.step % cfg.projection_refresh == 0
+        if refresh:
+            state.w = solver.induced_displacement(X, gradA, 1.0, advance=False)
+        dX = solver.induced_displacement(X, F - state.sigma_g * gradA, dt, same_points=refresh)
+        if cfg.chi > 0:
+            dX = dX + background_velocity(X, rate) * dt
+        A = float(geo.area.sum())
+        d_sigma = (float(xp.sum(gradA * dX)) + (A - A0)) / (dt * float(xp.sum(gradA * state.w)))
+        state.sigma_g += d_sigma
+        return dX - (dt * d_sigma) * state.w
+
+    def face_tension(self, state, geo):
+        return super().face_tension(state, geo) + state.sigma_g
+
+
+def fastest_growth_rate(sigma_mean: float, l_max: int, h: float = 0.0,
+                        kernel: str = DEFAULT_KERNEL, coupling: str = "kernel") -> tuple[float, int]:
+    """Largest growth rate -(Gamma_l + A_l sigma) (eq. 11) over 2 <= l <= l_max [1/tau] and its l.
+
+    With h > 0 each rate is multiplied by the coupling's measured mode damping (kernels.mode_damping): the rate
+    the IBM can actually produce on that grid, not the continuum's.
+    """
+    from ..analysis.theory import a_l, gamma_l
+    from .kernels import mode_damping
+
+    l = np.arange(2, max(int(l_max), 2) + 1)
+    r = -(gamma_l(l) + a_l(l) * sigma_mean)
+    if h > 0:
+        r = r * mode_damping(l, h, kernel, coupling)
+    i = int(np.argmax(r))
+    return float(r[i]), int(l[i])
+
+
+# Largest eigenvalue of the linearised velocity under a uniform tension sigma: 0.11-0.125 sigma / h (power
+# iteration, N = 64, 642 and 2562 vertices, sigma = 2000 and 8000; benchmarks/bench_tension.py). Forward
+# Euler is stable for |lam| dt < 2, i.e. dt < 16 h / |sigma|. The sharp coupling does not smooth the mesh-scale
+# modes away: 0.56 sigma / h at sigma = 8000 on 2379 vertices (edge ~h) at N = 64, so dt < 3.3 h / |sigma|.
+TENSION_STABILITY = {"kernel": 16.0, "sharp": 3.3}
+
+
+class Inextensible(Integrator):
+    """Forward Euler with the tension solved from the local area constraint every step (module tension)."""
+
+    name = "inextensible"
+    adaptive = True
+
+    def __init__(self, solver, dt_bending: float, X0=None):
+        from .mobility import IBMMobility
+        from .tension import TensionSolver
+
+        super().__init__(solver, dt_bending, X0)
+        cfg = self.cfg
+        self.dt_bending = dt_bending  # stability limit of the bending force (power iteration), tau
+        self.mobility = IBMMobility(solver.coupler, solver.stokes, solver._grid_buf)
+        mem = solver.membrane
+        local = None
+        if cfg.cg_precond == "local":
+            from .tension import LocalPreconditioner
+
+            local = LocalPreconditioner(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff,
+                                        refresh=cfg.projection_refresh)
+        self.space = None
+        self.ale = None
+        if cfg.tension_space == "harmonic":
+            self.tension = self._harmonic_solver()
+        else:
+            self.tension = TensionSolver(self.mobility, mem.topo, mem.ref.face_area, cfg.Lambda_eff, tol=cfg.cg_tol,
+                                         maxiter=cfg.cg_maxiter, cells="face", local=local)
+        self.l_grid = math.ceil(math.pi / cfg.h)  # the shortest wave the grid can carry, in R
+        self.iterations = []
+
+    def _harmonic_solver(self):
+        from .tension_harmonic import HarmonicSpace, HarmonicTensionSolver
+
+        cfg, mem, be = self.cfg, self.solver.membrane, self.solver.be
+        if self.X0 is None:
+            raise ConfigError("tension_space 'harmonic' needs the reference mesh's vertices (X0) for its material "
+                              "coordinates")
+        faces = be.asnumpy(mem.topo.faces)
+        self.space = HarmonicSpace(be.asnumpy(self.solver.xp.asarray(self.X0)), faces, be.asnumpy(mem.ref.face_area),
+                                   cfg.tension_l_max)
+        if cfg.mesh_ale == "area":
+            from .tension_harmonic import AreaALE
+
+            self.ale = AreaALE(self.space, cfg.h)
+        return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
+                                     maxiter=cfg.cg_maxiter)
+
+    def sigma_mean(self, state, geo) -> float:
+        if state.sigma is None:
+            return 0.0
+        xp = self.solver.xp
+        return float(xp.sum(state.sigma * geo.area) / xp.sum(geo.area))
+
+    def next_dt(self, state, geo) -> float:
+        cfg = self.cfg
+        limits = [cfg.dt_safety * self.dt_bending]
+        if state.sigma is not None:
+            smax = float(self.solver.xp.abs(state.sigma).max())
+            if smax > 0:
+                limits.append(cfg.dt_safety * TENSION_STABILITY[cfg.coupling] * cfg.h / smax)
+            rate, _ = fastest_growth_rate(self.sigma_mean(state, geo), self.l_grid, cfg.h, cfg.kernel, cfg.coupling)
+            if rate > 0:
+                limits.append(cfg.dt_growth / rate)
+        if cfg.chi > 0:
+            # the background flow strains the vesicle by dt_growth / 10 per step (1% at the default 0.1)
+            limits.append(0.1 * cfg.dt_growth / cfg.chi)
+        return min(limits)
+
+    def step(self, state, X, F, geo, dt, rate):
+        cfg, xp = self.cfg, self.solver.xp
+        mem = self.solver.membrane
+        nF = geo.area.shape[0]
+        if state.sigma is None:
+            state.sigma = xp.zeros(nF)
+        self.mobility.prepare(X)
+        # warm start of the CG: linear extrapolation in time of the last two tensions (steps vary in length)
+        if state.sigma_prev is None:
+            guess = state.sigma
+        else:
+            h_a, h_b = state.dt_steps
+            guess = state.sigma + (h_b / h_a) * (state.sigma - state.sigma_prev)
+        u_inf = background_velocity(X, rate) if cfg.chi > 0 else 0.0
+        if self.space is None:
+            sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt, guess)
+        else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
+            ts = self.tension
+            if ts.rho is None and state.tension_rho is not None:  # resumed: the measurement of the first call
+                ts.rho, ts._uses = np.asarray(state.tension_rho, dtype=float), int(state.tension_rho_age)
+            _, sigma, U = ts.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt,
+                                   self.space.fit(self.solver.be.asnumpy(guess)), seed=state.step)
+            state.tension_rho, state.tension_rho_age = ts.rho, ts._uses
+        state.sigma_prev = state.sigma
+        state.sigma = sigma
+        state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
+        self.iterations.append(self.tension.last.iterations)
+        if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
+            return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area)
+        return U * dt
+
+    def face_tension(self, state, geo):
+        if state.sigma is None:
+            return self.solver.xp.zeros(geo.area.shape[0])
+        return state.sigma
+
+    def stats(self) -> dict:
+        it = np.asarray(self.iterations, dtype=float)
+        if it.size == 0:
+            return {}
+        return {"cg_iterations_median": float(np.median(it)), "cg_iterations_mean": float(it.mean()),
+                "cg_iterations_max": int(it.max()),
+                # one for the warm-start velocity, one per iteration (+ the harmonic space's rho_l measurements)
+                "stokes_solves": int(it.size + it.sum() + getattr(self.tension, "extra_solves", 0)),
+                "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0)),  # local -> compliance repeats (this call)
+                **self._precond_stats()}
+
+    def _precond_stats(self) -> dict:
+        if self.space is not None:
+            out = {"tension_l_used": int(self.space.l_max), "tension_modes": int(self.space.K),
+                   "tension_rho_refreshes": int(self.tension.refreshes)}
+            if self.ale is not None:  # this call's
+                out.update(ale_lsqr_iterations_mean=self.ale.iterations / max(self.ale.calls, 1),
+                           ale_s=self.ale.seconds, ale_capped_steps=self.ale.capped)
+            return out
+        local = self.tension.local
+        if local is None:
+            return {}
+        return {"cg_precond_factorisations": int(local.factorisations), "cg_precond_s": float(local.seconds),
+                "cg_precond_shift": float(local.shift)}  # this call; the shift: the last build's (LocalPreconditioner)
+
+
+SCHEMES = {"explicit": Explicit, "projection": Projection, "inextensible": Inextensible}

@@ -1,0 +1,295 @@
+"""A Galerkin tension in real spherical harmonics: the inextensible scheme's ``tension_space: harmonic``.
+
+The triangle tension (:mod:`vesicle_core.solver.tension`) carries one unknown per triangle. That space has near-null
+modes, triangle patterns that exert almost no force (docs/solver.md, "Tension noise"), which hold most of its
+variance (a checkerboard) and slow its CG. Here the tension is a smooth field instead,
+
+    sigma(x) = sum_k c_k Y_k(theta(x), phi(x)),    k = (l, m), 0 <= l <= l_t, real Y_lm,
+
+evaluated at each triangle's centroid in material coordinates (the direction of the reference mesh's vertices
+from its volume centroid; the mesh is a sphere mesh mapped onto the ellipsoid, so these are its own sphere
+coordinates up to a smooth map). B (F, K) holds the Y_k at the centroids, so the per-triangle tension is B c and
+its force -D^T B c. What is constrained is the projection of the local area change on the space (Galerkin):
+
+    (dt B^T D M D^T B + G / Lambda) c = B^T [dt D (M F + u_inf) + (A - A^0)],     G = B^T W B,
+
+symmetric positive definite (G is the mass matrix of the space in the reference areas W). Triangle-scale area
+changes outside the space are not held: the vertices can slide tangentially on the mesh scale.
+
+Preconditioner ("diagonal in l", the quasi-spherical vesicle's own operator): on a sphere the area rate per unit
+tension of a mode Y_lm depends on l only (rotational invariance), rho_l. Here rho_l is measured on the IBM itself,
+on the current shape: one Stokes solve per l (a random combination of the m of that l, Rayleigh quotient
+v.Av / v.Gv), so it carries the grid's damping of mode l and the shape's l = 0 response (zero on a sphere: a
+uniform tension moves nothing there) without a model. P = S^(1/2) G S^(1/2), S = diag(dt rho_l + 1/Lambda),
+applied with the Cholesky factor of G. rho_l is re-measured every ``refresh`` steps (l_t + 1 Stokes solves).
+Prior art: ves3d's ``DiagonalSpectral`` tension preconditioner (Malhotra, Rahimian, Zorin & Biros), a diagonal
+in spherical harmonics.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import ConfigError
+from .tension import SolveInfo, face_D, face_DT, pcg
+
+
+def real_ylm(l_max, theta, phi):
+    """Real orthonormal spherical harmonics at the points, (n, (l_max+1)^2), and the l of each column.
+
+    Columns per l: m = 0, then (sqrt 2 Re Y_lm, sqrt 2 Im Y_lm) for m = 1..l (harmonics' normalisation)."""
+    from ..analysis.harmonics import _legendre_rows
+
+    th = np.asarray(theta, float).ravel()
+    ph = np.asarray(phi, float).ravel()
+    cols = {}
+    for m, P in _legendre_rows(np.cos(th), np.sin(th), l_max):
+        for l in range(m, l_max + 1):
+            if m == 0:
+                cols[(l, 0)] = P[l - m]
+            else:
+                cols[(l, m)] = math.sqrt(2.0) * P[l - m] * np.cos(m * ph)
+                cols[(l, -m)] = math.sqrt(2.0) * P[l - m] * np.sin(m * ph)
+    keys = [(l, m) for l in range(l_max + 1) for m in [0] + [s * k for k in range(1, l + 1) for s in (1, -1)]]
+    Y = np.stack([cols[k] for k in keys], axis=1)
+    return Y, np.array([k[0] for k in keys])
+
+
+def default_l_max(X0, faces) -> int:
+    """Half the mesh's resolvable l (harmonics.resolvable_l_max: pi R / mean edge), the resolved_field default:
+    four edges per wavelength. 642 vertices: 10; 2562: 20; 10242: 40."""
+    from ..analysis.harmonics import resolvable_l_max
+
+    return max(2, resolvable_l_max(X0, faces) // 2)
+
+
+class HarmonicSpace:
+    """The tension space: B (F, K), the l of each column, the mass G = B^T W B and its Cholesky factor."""
+
+    def __init__(self, X0, faces, A0, l_max=None, check=True):
+        from ..analysis.harmonics import _angles, volume_centroid
+
+        X0 = np.asarray(X0, dtype=float)
+        faces = np.asarray(faces)
+        self.l_max = default_l_max(X0, faces) if l_max is None else int(l_max)
+        if self.l_max < 0:
+            raise ConfigError(f"tension_l_max must be >= 0, got {self.l_max}")
+        from ..analysis.harmonics import resolvable_l_max
+
+        l_res = resolvable_l_max(X0, faces)
+        if check and self.l_max > l_res:
+            raise ConfigError(f"tension_l_max = {self.l_max} exceeds the mesh's resolvable l {l_res} (pi R / mean "
+                              f"edge): the inf-sup constant collapses there (0.48 against 1.95 at 162 vertices, "
+                              f"docs/solver.md)")
+        c0 = volume_centroid(X0, faces)
+        u = X0 - c0
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        cen = u[faces].mean(axis=1)
+        _, theta, phi = _angles(cen)
+        self.B, self.l = real_ylm(self.l_max, theta, phi)
+        self.K = self.B.shape[1]
+        if self.K > faces.shape[0]:
+            raise ConfigError(f"tension_l_max = {self.l_max} gives {self.K} harmonics, more than the mesh's "
+                              f"{faces.shape[0]} triangles")
+        self.W = np.asarray(A0, dtype=float)
+        self.G = self.B.T @ (self.W[:, None] * self.B)
+        self.G_chol = np.linalg.cholesky(self.G)
+
+    def faces(self, c):
+        """Per-triangle tension B c."""
+        return self.B @ c
+
+    def test(self, f):
+        """B^T f: the projection of a per-triangle quantity on the space (Galerkin test)."""
+        return self.B.T @ f
+
+    def G_solve(self, r):
+        import scipy.linalg as sl
+
+        return sl.cho_solve((self.G_chol, True), r)
+
+    def fit(self, sigma_faces):
+        """Coefficients of the W-orthogonal projection of a per-triangle field on the space."""
+        return self.G_solve(self.B.T @ (self.W * np.asarray(sigma_faces, float)))
+
+    def project_faces(self, f_faces):
+        """The W-orthogonal projection of a per-triangle field on the space, per triangle."""
+        return self.B @ self.fit(f_faces)
+
+
+class HarmonicTensionSolver:
+    """PCG in the coefficients c (see the module docstring). Same interface as tension.TensionSolver: ``solve``
+    returns the per-triangle tension B c and the velocity; ``last`` is a SolveInfo."""
+
+    def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=50, seed=0):
+        if not Lambda > 0:
+            raise ConfigError(f"Lambda (area-stretch modulus) must be > 0 for the tension solve, got {Lambda!r}")
+        self.mobility = mobility
+        self.topo = topo
+        self.space = space
+        self.Lambda = float(Lambda)
+        self.tol = float(tol)
+        self.maxiter = int(maxiter)
+        self.refresh = int(refresh)
+        self.rng = np.random.default_rng(seed)
+        self.area = float(space.W.sum())
+        self.rho = None  # measured area rate per unit tension per l (rho_l), at the last refresh
+        self._uses = 0
+        self.extra_solves = 0  # Stokes solves spent measuring rho_l
+        self.refreshes = 0
+        self.last = SolveInfo(0, 0.0, 0.0)
+
+    # ------------------------------------------------------------------ operator and preconditioner
+    def _xp_faces(self, c):
+        return self.topo.xp.asarray(self.space.faces(c))
+
+    def _np(self, a):
+        return np.asarray(a.get() if hasattr(a, "get") else a)
+
+    def apply_rate(self, c, geo):
+        """(B^T D M D^T B c, M D^T B c): the area rate per unit time of a tension c and its velocity."""
+        q = self.mobility.apply(face_DT(self._xp_faces(c), geo, self.topo))
+        return self.space.test(self._np(face_D(q, geo, self.topo))), q
+
+    def operator(self, c, geo, dt):
+        """(A c, M D^T B c) with A = dt B^T D M D^T B + G / Lambda."""
+        rate, q = self.apply_rate(c, geo)
+        return dt * rate + self.space.G @ c / self.Lambda, q
+
+    def measure_rho(self, geo, seed=None):
+        """rho_l = v.(B^T D M D^T B) v / v.G v for a random v in the span of each l's harmonics (l_t + 1 solves);
+        ``seed``: the draw (the step number in runs, so that a resumed run measures what the first call did)."""
+        sp = self.space
+        rng = self.rng if seed is None else np.random.default_rng(seed)
+        rho = np.empty(sp.l_max + 1)
+        for l in range(sp.l_max + 1):
+            v = np.where(sp.l == l, rng.standard_normal(sp.K), 0.0)
+            rate, _ = self.apply_rate(v, geo)
+            rho[l] = float(v @ rate) / float(v @ (sp.G @ v))
+        self.extra_solves += sp.l_max + 1
+        self.refreshes += 1
+        # a mode no flow can change (rho <= 0 only by round-off; the sphere's l = 0) is held by the compliance
+        self.rho = np.maximum(rho, 0.0)
+        self._uses = 0
+
+    def precondition(self, r, dt):
+        s = 1.0 / np.sqrt(dt * self.rho[self.space.l] + 1.0 / self.Lambda)
+        return s * self.space.G_solve(s * r)
+
+    def strain_rms(self, r):
+        """rms strain of the residual's field in the space: sqrt(r.G^-1 r / A)."""
+        return math.sqrt(max(float(r @ self.space.G_solve(r)), 0.0) / self.area)
+
+    # ------------------------------------------------------------------ the solve
+    def solve(self, geo, F, u_inf, area_error, dt, c0, seed=None):
+        """Coefficients c, per-triangle tension B c and velocity U (V, 3) of one step; the mobility must be prepared
+        at geo's positions. Raises NumericalInstability when PCG does not converge."""
+        sp = self.space
+        if self.rho is None or self._uses >= self.refresh:
+            self.measure_rho(geo, seed)
+        self._uses += 1
+        c = np.array(c0, dtype=float, copy=True)
+        U = self.mobility.apply(F - face_DT(self._xp_faces(c), geo, self.topo)) + u_inf
+        r = sp.test(self._np(dt * face_D(U, geo, self.topo) + area_error)) - sp.G @ c / self.Lambda
+        c, U, it, res, res0 = pcg(c, U, r, lambda p: self.operator(p, geo, dt), lambda r: self.precondition(r, dt),
+                                  lambda a, b: float(a @ b), self.strain_rms, self.tol, self.maxiter)
+        self.last = SolveInfo(it, res, res0)
+        return c, self._xp_faces(c), U
+
+
+# --------------------------------------------------------------------------- inf-sup
+def inf_sup(X, faces, B=None, W=None):
+    """Discrete inf-sup constant of a tension space: the smallest singular value of D^T B, normalised,
+
+        beta = min_c |D^T B c|_{V^-1} / |B c|_W,
+
+    with D the triangle-area gradient at X, V the barycentric vertex areas (|f|_{V^-1}^2 = sum_i |f_i|^2 / V_i: the
+    L2 norm of the force density) and W the triangle areas (the L2 norm of the tension). B None: the triangle space
+    (B = I). On a sphere of radius R the continuum value is min_l sqrt(l (l+1) + 4) / R = 2 / R (l = 0: a uniform
+    tension pulls normally with 2 sigma / R). Dense: for checks and benchmarks (F up to a few thousand)."""
+    import scipy.linalg as sl
+
+    from . import membrane as Mb
+    from .tension import dual_areas, face_D_matrix
+
+    topo = Mb.Topology(faces, X.shape[0])
+    geo = Mb.geometry(np.asarray(X, float), topo)
+    D = face_D_matrix(geo, topo)  # (F, 3V), sparse
+    Vm = np.repeat(dual_areas(geo, topo), 3)
+    W = geo.area if W is None else np.asarray(W, float)
+    DB = D.T.toarray() if B is None else np.asarray(D.T @ B)  # (3V, K)
+    K = DB / np.sqrt(Vm)[:, None]
+    Gm = np.diag(W) if B is None else B.T @ (W[:, None] * B)
+    lam = sl.eigh(K.T @ K, Gm, eigvals_only=True, subset_by_index=[0, 0])
+    return float(np.sqrt(max(lam[0], 0.0)))
+
+
+# --------------------------------------------------------------------------- tangential (ALE) mesh velocity
+class AreaALE:
+    """A tangential vertex displacement that holds the triangle areas the harmonic tension leaves free.
+
+    The harmonic tension holds B^T (A - A^0), the projection of the area change on the space; the rest of every
+    triangle's area change (the triangle scale) is not held, and the vertices then slide tangentially on the mesh
+    scale. This adds to the step's displacement dX a tangential w (w . n_i = 0 at each vertex, n_i its normal)
+    that makes the triangle areas after the step A^0 plus the space's part:
+
+        min_w |W^(-1/2) (D w - y)|^2 + damp^2 |w|^2 / h^2,   y = -(I - W B G^-1 B^T)(D dX + A - A^0),
+
+    by LSQR (sparse D, no Stokes solve). y has no component the tension holds (B^T y = 0), and a tangential w
+    changes the shape only at second order, so the membrane's motion is unchanged; what changes is which mesh
+    point sits where (an arbitrary Lagrangian-Eulerian mesh). ``damp`` keeps w small where no vertex motion
+    reaches an area pattern (the triangle space's near-null modes)."""
+
+    def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=400, max_step=0.05):
+        self.space = space
+        self.max_step = float(max_step)  # largest |w| per step, in h: the rest is left to the next steps
+        self.capped = 0
+        self.h = float(h)
+        self.damp = float(damp)
+        self.iter_lim = int(iter_lim)
+        self.iterations = 0
+        self.calls = 0
+        self.seconds = 0.0
+
+    def __call__(self, X, geo, topo, dX, area_error):
+        import time
+
+        import scipy.sparse as sps
+        import scipy.sparse.linalg as spla
+
+        from ..analysis.harmonics import vertex_normals
+        from .tension import face_D_matrix
+
+        t0 = time.perf_counter()
+        sp = self.space
+        Xn = np.asarray(X.get() if hasattr(X, "get") else X, float)
+        faces = np.asarray(topo.faces.get() if hasattr(topo.faces, "get") else topo.faces)
+        dXn = np.asarray(dX.get() if hasattr(dX, "get") else dX, float)
+        err = np.asarray(area_error.get() if hasattr(area_error, "get") else area_error, float)
+        D = face_D_matrix(geo, topo)  # (F, 3V)
+        x = D @ dXn.ravel() + err
+        y = -(x - sp.W * (sp.B @ sp.G_solve(sp.B.T @ x)))
+        n = vertex_normals(Xn, faces)
+        a = np.where(np.abs(n[:, 0:1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+        t1 = np.cross(n, a)
+        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+        t2 = np.cross(n, t1)
+        V = Xn.shape[0]
+        rows = np.concatenate([3 * np.arange(V)[:, None] + np.arange(3)[None, :]] * 2, axis=1).ravel()
+        iv = 2 * np.arange(V)[:, None]
+        cols = np.concatenate([np.repeat(iv, 3, 1), np.repeat(iv + 1, 3, 1)], axis=1).ravel()
+        T = sps.csr_matrix((np.concatenate([t1, t2], axis=1).ravel(), (rows, cols)), shape=(3 * V, 2 * V))
+        s = 1.0 / np.sqrt(sp.W)
+        A = sps.diags(s) @ (D @ T) * self.h  # unknowns in units of h
+        out = spla.lsqr(A, s * y, damp=self.damp, atol=1e-8, btol=1e-8, iter_lim=self.iter_lim)
+        w = (T @ (out[0] * self.h)).reshape(V, 3)
+        wmax = float(np.sqrt((w**2).sum(axis=1)).max())
+        if wmax > self.max_step * self.h:  # a large tangential step would fold triangles on a wrinkled surface
+            w *= self.max_step * self.h / wmax
+            self.capped += 1
+        self.iterations += int(out[2])
+        self.calls += 1
+        self.seconds += time.perf_counter() - t0
+        return topo.xp.asarray(w)
