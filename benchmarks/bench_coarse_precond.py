@@ -20,7 +20,8 @@ import sys
 
 import numpy as np
 
-from vesicle_core.analysis import harmonics as H
+from vesicle_core.geometry import surface as Sf
+from vesicle_core.geometry import ylm as Yl
 from vesicle_core.model.flow import background_velocity
 from vesicle_core.solver.tension import LocalPreconditioner, TensionSolver, face_D
 
@@ -31,7 +32,7 @@ from bench_tension_sources import load_case  # noqa: E402
 def real_ylm_basis(points, l_c):
     """Orthonormal columns spanning the real Y_lm, l <= l_c, at ``points`` (relative to the centre)."""
     r = np.linalg.norm(points, axis=1)
-    Y = H.ylm(l_c, np.arccos(np.clip(points[:, 2] / r, -1, 1)), np.arctan2(points[:, 1], points[:, 0]))
+    Y = Yl.ylm(l_c, np.arccos(np.clip(points[:, 2] / r, -1, 1)), np.arctan2(points[:, 1], points[:, 0]))
     cols = [Y[l, l_c + m].real for l in range(l_c + 1) for m in range(l + 1)]
     cols += [Y[l, l_c + m].imag for l in range(l_c + 1) for m in range(1, l + 1)]
     return np.linalg.qr(np.array(cols).T)[0]
@@ -85,7 +86,7 @@ def main():
     print(f"{a.trajectory}: gamma_dot t = {ds.time.values[k]:.2f}, {n} triangles; CG iterations cold / warm")
     for name, pre in base.items():
         print(f"{name:>26}: {pcg(A, b, W, pre, np.zeros(n)):4d} {pcg(A, b, W, pre, warm):4d}")
-    centroids = X[k][faces].mean(axis=1) - H.volume_centroid(X[k], faces)
+    centroids = X[k][faces].mean(axis=1) - Sf.volume_centroid(X[k], faces)
     for l_c in a.l_coarse:
         Z = real_ylm_basis(centroids, l_c)
         Ac_inv = np.linalg.inv(Z.T @ A @ Z)

@@ -21,7 +21,8 @@ import tempfile
 import time
 
 from vesicle_core.geometry import mesh as M
-from vesicle_core.solver.simulate import RunConfig, run
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.simulate import run
 
 
 def stage(path, name):

@@ -34,7 +34,8 @@ import yaml
 
 from vesicle_core.analysis.spectra import spectra_from_trajectory
 from vesicle_core.geometry import mesh as M
-from vesicle_core.solver.simulate import RunConfig, run
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.simulate import run
 
 
 def inextensibility(ds):

@@ -22,8 +22,9 @@ import numpy as np
 import scipy.linalg as sl
 
 from vesicle_core.geometry import mesh as M
-from vesicle_core.solver.mobility import IBMMobility
-from vesicle_core.solver.simulate import IBMSolver, RunConfig, power_dt
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.mobility import IBMMobility, IBMSolver
+from vesicle_core.solver.simulate import power_dt
 from vesicle_core.solver.tension import TensionSolver
 
 

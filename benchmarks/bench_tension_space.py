@@ -29,6 +29,8 @@ import numpy as np
 import xarray as xr
 
 from vesicle_core.analysis import harmonics as H
+from vesicle_core.geometry import surface as Sf
+from vesicle_core.geometry import ylm as Yl
 from vesicle_core.solver import membrane as Mb
 from vesicle_core.solver.tension import vertex_mean
 from vesicle_core.solver.tension_harmonic import HarmonicSpace, default_l_max, inf_sup
@@ -52,7 +54,7 @@ def analyse(path, l_max=None):
     space = HarmonicSpace(X[0], faces, A0, L)
     f = faces
     E = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
-    lres = H.resolvable_l_max(X[0], faces)
+    lres = Sf.resolvable_l_max(X[0], faces)
     t = ds.time.values
     rows = []
     for k in range(X.shape[0]):
@@ -66,7 +68,7 @@ def analyse(path, l_max=None):
         rms = np.sqrt(np.mean(tv**2))
         cb = np.sqrt(np.mean((tv[E[:, 0]] - tv[E[:, 1]]) ** 2)) / rms if rms > 0 else 0.0
         qd = H.quadrature(X[k], faces, rule="centroid")
-        cl = H.project(s, qd.theta, qd.phi, qd.weights, lres)
+        cl = Yl.project(s, qd.theta, qd.phi, qd.weights, lres)
         pw = (np.abs(cl) ** 2).sum(axis=1) / (4 * np.pi)
         ww = qd.weights / qd.weights.sum()
         var = np.sum(ww * s**2) - np.sum(ww * s) ** 2
@@ -129,8 +131,8 @@ def conditioning(path, frames, N):
     also the measured rho_l against the frame's l."""
     import scipy.linalg as sl
 
-    from vesicle_core.solver.mobility import IBMMobility
-    from vesicle_core.solver.simulate import IBMSolver, RunConfig
+    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.solver.mobility import IBMMobility, IBMSolver
     from vesicle_core.solver.tension_harmonic import HarmonicTensionSolver
 
     ds = xr.open_dataset(path).load()

@@ -33,7 +33,7 @@ import sys
 import numpy as np
 import scipy.sparse as sp
 
-from vesicle_core.analysis import harmonics as H
+from vesicle_core.geometry import surface as Sf
 from vesicle_core.model.flow import background_velocity
 from vesicle_core.solver.tension import TensionSolver, face_D_matrix, face_DT, vertex_mean
 
@@ -86,7 +86,7 @@ def analyse(path, time):
     # responses to a tangential slip: |T D^T q|^2 and the vertex-graph high-pass version
     Dm = face_D_matrix(geo, topo)
     V = Xk.shape[0]
-    nv = H.vertex_normals(Xk, faces)
+    nv = Sf.vertex_normals(Xk, faces)
     Fq = (Dm.T @ (Wh[:, None] * Q)).reshape(V, 3, n)
     Fq -= nv[:, :, None] * np.einsum("vc,vcn->vn", nv, Fq)[:, None, :]
     tang = np.einsum("vcn,vcn->n", Fq, Fq)

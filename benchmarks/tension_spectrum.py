@@ -27,6 +27,8 @@ import numpy as np
 import xarray as xr
 
 from vesicle_core.analysis import harmonics as H
+from vesicle_core.geometry import surface as Sf
+from vesicle_core.geometry import ylm as Yl
 from vesicle_core.solver import membrane as B
 from vesicle_core.solver.tension import vertex_mean
 
@@ -41,7 +43,7 @@ def analyse(path, t_min, t_max, l_max):
     topo = B.Topology(faces, X.shape[1])
     E = edges(faces)
     t = ds.time.values
-    lres = H.resolvable_l_max(X[0], faces)
+    lres = Sf.resolvable_l_max(X[0], faces)
     L = l_max or lres
     half = L // 2
     print(f"{path}: {X.shape[1]} vertices, {faces.shape[0]} triangles, resolvable l {lres}, projecting to l {L}")
@@ -52,7 +54,7 @@ def analyse(path, t_min, t_max, l_max):
         v = X[k]
         s = ds.face_tension.values[k].astype(float)
         q = H.quadrature(v, faces, rule="centroid")
-        c = H.project(s, q.theta, q.phi, q.weights, L)
+        c = Yl.project(s, q.theta, q.phi, q.weights, L)
         pw = (np.abs(c) ** 2).sum(axis=1) / (4 * np.pi)  # variance per l (R = 1: the sphere's area is 4 pi)
         dl = H.delta_l(H.decompose(v, faces, min(L, lres)))
         l_peak = int(np.argmax(dl[3:]) + 3)

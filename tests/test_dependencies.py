@@ -32,7 +32,8 @@ CORE_ONLY = textwrap.dedent(f"""
             importlib.import_module(m.name)
     from vesicle_core.geometry import mesh
     from vesicle_core.solver import backend, stokes
-    from vesicle_core.solver.simulate import RunConfig, run
+    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.solver.simulate import run
     assert backend.get_backend().fft_library == "scipy"
     assert stokes._compiled_steady_pass() is None
     m = mesh.make_vesicle("icosphere", level=1)

@@ -161,14 +161,14 @@ def test_duplicate_cases_are_refused(tmp_path):
 
 def test_config_files_satisfy_schema_and_solver():
     """Every shipped config validates against the schema, and its run section (table defaults filled in) is a
-    valid vesicle_core.solver.simulate.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
+    valid vesicle_core.model.run_config.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
     from dataclasses import fields
 
     from snakemake.utils import validate
 
     from vesicle_core.model.parameters import RUN_PARAMETERS, defaults
+    from vesicle_core.model.run_config import RunConfig
     from vesicle_core.model.units import chi_from_S
-    from vesicle_core.solver.simulate import RunConfig
 
     schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
     params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"

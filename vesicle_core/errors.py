@@ -62,3 +62,10 @@ def check_range(name, value, lo=None, hi=None, *, lo_open=False, hi_open=False, 
     if bad:
         raise ConfigError(f"{name} must lie in {_range_text()}, got {value!r}")
     return value
+
+
+def check_choice(name, value, allowed):
+    """``value`` if it is one of ``allowed``, else ConfigError naming the field and the allowed values."""
+    if value not in allowed:
+        raise ConfigError(f"{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
+    return value

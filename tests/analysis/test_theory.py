@@ -5,8 +5,10 @@ import math
 import numpy as np
 import pytest
 
+from vesicle_core.analysis import harmonics as H
 from vesicle_core.analysis import theory as T
 from vesicle_core.errors import ConfigError
+from vesicle_core.model import modes as Mo
 from vesicle_core.model.units import chi_from_S
 
 # The four published PA values (Fig. 3 caption, Fig. 5 caption): (Delta, S) -> l_*
@@ -24,15 +26,15 @@ def paper_runs():
 
 
 def test_coefficients():
-    assert T.gamma_l(2) == pytest.approx(144 / 55)
-    assert T.a_l(2) == pytest.approx(24 / 55)
-    assert T.gamma_l(1) == 0 and T.a_l(1) == 0
+    assert Mo.gamma_l(2) == pytest.approx(144 / 55)
+    assert Mo.a_l(2) == pytest.approx(24 / 55)
+    assert Mo.gamma_l(1) == 0 and Mo.a_l(1) == 0
     l = 400.0
-    assert T.gamma_l(l) / (l**3 / 4) == pytest.approx(1, rel=0.01)
-    assert T.a_l(l) / (l / 4) == pytest.approx(1, rel=0.01)
+    assert Mo.gamma_l(l) / (l**3 / 4) == pytest.approx(1, rel=0.01)
+    assert Mo.a_l(l) / (l / 4) == pytest.approx(1, rel=0.01)
     # (A_l sigma + Gamma_l) = A_l (sigma + l(l+1))
     ls = np.arange(2, 30)
-    assert np.allclose(T.gamma_l(ls), T.a_l(ls) * ls * (ls + 1))
+    assert np.allclose(Mo.gamma_l(ls), Mo.a_l(ls) * ls * (ls + 1))
 
 
 def test_excess_area_normalisation_is_sum_u2_equal_2():
@@ -78,7 +80,7 @@ def test_excess_area_normalisation_is_sum_u2_equal_2():
 
 def test_initial_state_layout_symmetry_and_normalisation():
     L = 20
-    u = T.initial_state(L, 553, seed=4)
+    u = Mo.initial_state(L, 553, seed=4)
     assert u.shape == (L + 1, 2 * L + 1)
     l = np.arange(L + 1)[:, None]
     m = np.arange(-L, L + 1)[None, :]
@@ -89,22 +91,22 @@ def test_initial_state_layout_symmetry_and_normalisation():
     assert np.sum(np.abs(u) ** 2) == pytest.approx(2.0, abs=1e-14)
     assert u[2, L + 2] == u[2, L - 2] and u[2, L + 2].imag == 0 and u[2, L + 2].real == pytest.approx(1, abs=1e-3)
     # thermal moduli (fixed amplitudes) and default k_B T / kappa of Table III
-    var = T.thermal_variance(np.arange(L + 1), 553)
+    var = Mo.thermal_variance(np.arange(L + 1), 553)
     assert var[10] == pytest.approx(2 * 1.380649e-23 * 293 / 1e-19 / (10**4 + 553 * 100 / (24 / 55)))
     for ll in (3, 7, 20):
         assert np.allclose(np.abs(u[ll, L - ll:L + ll + 1]) ** 2, var[ll])
     # reproducible, seed dependent, and independent of the truncation for l <= 20
-    assert np.array_equal(u, T.initial_state(L, 553, seed=4))
-    assert not np.allclose(u[5:], T.initial_state(L, 553, seed=5)[5:])
-    big = T.initial_state(40, 553, seed=4)
+    assert np.array_equal(u, Mo.initial_state(L, 553, seed=4))
+    assert not np.allclose(u[5:], Mo.initial_state(L, 553, seed=5)[5:])
+    big = Mo.initial_state(40, 553, seed=4)
     assert np.allclose(big[3:L + 1, 40 - L:40 + L + 1], u[3:])
 
 
 def test_gaussian_amplitudes_have_the_thermal_mean():
     L = 60
-    u = T.initial_state(L, 553, seed=1, amplitudes="gaussian")
-    var = T.thermal_variance(np.arange(L + 1), 553)
-    ratio = T.delta_l(u)[20:] / ((2 * np.arange(20, L + 1) + 1) * var[20:])
+    u = Mo.initial_state(L, 553, seed=1, amplitudes="gaussian")
+    var = Mo.thermal_variance(np.arange(L + 1), 553)
+    ratio = H.delta_l(u)[20:] / ((2 * np.arange(20, L + 1) + 1) * var[20:])
     assert np.mean(ratio) == pytest.approx(1, abs=0.05)
     assert np.std(ratio) > 0.05  # chi-square scatter, not fixed moduli
 
@@ -112,12 +114,12 @@ def test_gaussian_amplitudes_have_the_thermal_mean():
 def test_forward_stationary_state_and_tension():
     """Without thermal noise u_{2,+-2} = +1 is stationary in the forward flow with sigma = (S - Gamma_2)/A_2."""
     S, L = 553.0, 10
-    u = T.initial_state(L, S, kT_over_kappa=0.0)
+    u = Mo.initial_state(L, S, kT_over_kappa=0.0)
     sigma = T.global_tension(u, +S)
-    assert sigma == pytest.approx((S - T.gamma_l(2)) / T.a_l(2), rel=1e-12)
+    assert sigma == pytest.approx((S - Mo.gamma_l(2)) / Mo.a_l(2), rel=1e-12)
     assert np.max(np.abs(T.mode_rhs(u, +S))) < 1e-10 * S
     # eq. (12) is exactly d/ds sum |u|^2 = 0, for any state
-    v = T.initial_state(L, S, seed=2, amplitudes="gaussian", kT_over_kappa=5.0)
+    v = Mo.initial_state(L, S, seed=2, amplitudes="gaussian", kT_over_kappa=5.0)
     du = T.mode_rhs(v, -S)
     assert abs(np.sum(np.real(np.conj(v) * du))) < 1e-9 * S
 
@@ -130,9 +132,9 @@ def test_thermal_physical_is_cutoff_dominated():
     assert s80 < 2.5 * s40 < 0
     lit = [T.solve(0.116, 553, l_max=L).sigma(0.0) for L in (40, 80)]
     assert lit[1] == pytest.approx(lit[0], rel=2e-3)
-    assert lit[0] == pytest.approx(-(553 + T.gamma_l(2)) / T.a_l(2), rel=2e-3)
+    assert lit[0] == pytest.approx(-(553 + Mo.gamma_l(2)) / Mo.a_l(2), rel=2e-3)
     with pytest.raises(ConfigError, match="whole excess area"):
-        T.initial_state(80, 100, delta=0.116, thermal="physical")
+        Mo.initial_state(80, 100, delta=0.116, thermal="physical")
 
 
 # --------------------------------------------------------------------------- characteristic l
@@ -141,25 +143,25 @@ def test_thermal_physical_is_cutoff_dominated():
 def test_characteristic_l_eq31_and_peak():
     D = np.zeros(12)
     D[7] = 0.3
-    assert T.characteristic_l(D) == pytest.approx(7)
-    assert T.characteristic_l(D, method="peak") == 7
+    assert H.characteristic_l(D) == pytest.approx(7)
+    assert H.characteristic_l(D, method="peak") == 7
     D[4] = 0.2
     g = lambda l: (l - 1) * (l + 2)  # noqa: E731
     expect = math.sqrt((16 / g(4) * 0.2 + 49 / g(7) * 0.3) / (0.2 / g(4) + 0.3 / g(7)))
-    assert T.characteristic_l(D) == pytest.approx(expect)
-    assert T.characteristic_l(D, l_max=5) == pytest.approx(4)  # l range 3..l_max
+    assert H.characteristic_l(D) == pytest.approx(expect)
+    assert H.characteristic_l(D, l_max=5) == pytest.approx(4)  # l range 3..l_max
     D2 = D.copy()
     D2[2] = 5.0  # l = 2 is not part of eq. (31)
-    assert T.characteristic_l(D2) == pytest.approx(expect)
-    assert math.isnan(T.characteristic_l(np.zeros(12)))
-    assert math.isnan(T.characteristic_l(np.zeros(12), method="peak"))
+    assert H.characteristic_l(D2) == pytest.approx(expect)
+    assert math.isnan(H.characteristic_l(np.zeros(12)))
+    assert math.isnan(H.characteristic_l(np.zeros(12), method="peak"))
     # vectorised over leading axes, per-row l_max, NaN entries ignored
     stack = np.stack([D, D, np.where(np.arange(12) > 8, np.nan, D)])
-    out = T.characteristic_l(stack, l_max=np.array([11, 5, 11]))
+    out = H.characteristic_l(stack, l_max=np.array([11, 5, 11]))
     assert out == pytest.approx([expect, 4, expect])
-    assert T.l_star is T.characteristic_l
+    assert T.l_star is H.characteristic_l
     with pytest.raises(ConfigError):
-        T.characteristic_l(D, method="mean")
+        H.characteristic_l(D, method="mean")
 
 
 # --------------------------------------------------------------------------- dynamics
@@ -203,7 +205,7 @@ def test_conservation_relaxation_and_stage1(paper_runs, key):
     assert float(end["u_real"].sel(l=2, m=2)) == pytest.approx(-1, abs=1e-8)
     assert float(end["u_real"].sel(l=2, m=-2)) == pytest.approx(-1, abs=1e-8)
     assert float(end["Delta_l"].sel(l=slice(3, None)).sum()) < 1e-10
-    assert float(end["sigma"]) == pytest.approx((S - T.gamma_l(2)) / T.a_l(2), rel=1e-6)
+    assert float(end["sigma"]) == pytest.approx((S - Mo.gamma_l(2)) / Mo.a_l(2), rel=1e-6)
     # stage 1: negative, nearly constant tension at -(S + Gamma_2)/A_2. "Nearly" quantified: the relative change
     # of sigma is ~10x the fraction of the area that has left l = 2. Measured (n_out = 2001), for
     # (0.116, 553), (0.116, 2224), (0.997, 237), (0.997, 947):
@@ -211,7 +213,7 @@ def test_conservation_relaxation_and_stage1(paper_runs, key):
     #   while Delta_2 >= 0.99  Delta_2(0): 5.7 %, 11.3 %, 3.6 %, 7.3 %
     st = T.stage1_summary(ds, fraction=0.99)
     assert st["all_negative"] and st["n_samples"] >= 20
-    assert st["sigma0"] == pytest.approx(-(S + T.gamma_l(2)) / T.a_l(2), rel=2e-3)
+    assert st["sigma0"] == pytest.approx(-(S + Mo.gamma_l(2)) / Mo.a_l(2), rel=2e-3)
     assert st["max_rel_change"] < 0.12
     assert T.stage1_summary(ds, fraction=0.999)["max_rel_change"] < 0.015
     # Delta_2 has its minimum at t_* and is (almost) emptied there
@@ -242,7 +244,7 @@ def test_published_l_star(paper_runs, key):
     # l range of eq. (31): 3..l_max_nontrivial, the largest l with some |u_lm(t_*)| > 1e-5
     lmax = int(ds["l_max_nontrivial"])
     assert 3 < lmax < int(ds.attrs["l_max"])
-    assert T.characteristic_l(ds["Delta_l_star"].values, lmax) == pytest.approx(float(ds["l_star"]))
+    assert H.characteristic_l(ds["Delta_l_star"].values, lmax) == pytest.approx(float(ds["l_star"]))
 
 
 @pytest.mark.parametrize("key", [(0.116, 553), (0.997, 947)])
@@ -326,7 +328,8 @@ def test_sweep_exponent_gaussian_seeds():
 def test_grid_damped_modes_follow_the_damped_mode_equation():
     """du_lm/ds = -r_l (Gamma_l + A_l sigma) u_lm for l >= 3, with sigma of eq. (12) from the damped rates, and
     the area sum |u|^2 still conserved (finite differences of the dense solution)."""
-    from vesicle_core.analysis.theory import a_l, gamma_l, grid_damping, solve
+    from vesicle_core.analysis.theory import grid_damping, solve
+    from vesicle_core.model.modes import a_l, gamma_l
 
     h = 5.0 / 128
     sol = solve(0.116, 553.0, grid_h=h, t_end=0.5)

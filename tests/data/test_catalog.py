@@ -241,9 +241,10 @@ def real_runs(tmp_path_factory):
     """Two tiny IBM runs at the same nominal (Delta, S) and grid N = 16 that differ in mesh (icosphere L1, 42
     vertices / quasi-uniform, 162 vertices), scheme, kernel and dtype, the second tagged; their meshes,
     trajectories and spectra are written the way the workflow lays them out (about 2 s)."""
-    from vesicle_core.data import datasets as D
+    from vesicle_core.analysis.spectra import spectra_from_trajectory
     from vesicle_core.geometry import mesh as M
-    from vesicle_core.solver.simulate import RunConfig, run
+    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.solver.simulate import run
 
     root = tmp_path_factory.mktemp("real") / "results"
     delta, S = 0.17, 100.0
@@ -265,7 +266,7 @@ def real_runs(tmp_path_factory):
                         **c["cfg"])
         traj = run(m, cfg, root / "runs" / c["id"], progress=False)
         with xr.open_dataset(traj) as ds:
-            spec = D.spectra_from_trajectory(ds.load(), command="pytest")
+            spec = spectra_from_trajectory(ds.load(), command="pytest")
         sp = traj.parent / "spectra.nc"
         spec.to_netcdf(sp)
         c["paths"] = {"mesh": mp, "trajectory": traj, "spectra": sp}

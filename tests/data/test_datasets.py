@@ -11,9 +11,11 @@ from scipy.special import sph_harm_y
 
 from vesicle_core import __version__
 from vesicle_core.analysis import harmonics as H
+from vesicle_core.analysis.spectra import spectra_from_trajectory
 from vesicle_core.data import datasets as D
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as M
+from vesicle_core.geometry import surface as Sf
 
 # Synthetic run on a level-4 icosphere: an l = 2 "stretch" that decays to its minimum at t = 0.2 (smaller
 # still before the reversal, which t_* must ignore) while two axisymmetric wrinkle modes l = 6 and l = 9 grow.
@@ -71,7 +73,7 @@ def traj():
 
 @pytest.fixture(scope="module")
 def spectra(traj):
-    return D.spectra_from_trajectory(traj, command="pytest")
+    return spectra_from_trajectory(traj, command="pytest")
 
 
 def expected_l_star(k):
@@ -98,7 +100,7 @@ def test_spectra_layout(spectra, traj):
     assert np.all(np.isnan(u0[bad])) and np.all(np.isfinite(u0[~bad]))
     np.testing.assert_array_equal(ds["sigma"].values, traj["tension"].values)
     np.testing.assert_array_equal(ds["t_tau"].values, traj["t_tau"].values)
-    a = H.triangle_areas(np.stack([traj[c].isel(time=1).values for c in ("node_x", "node_y", "node_z")], 1),
+    a = Sf.triangle_areas(np.stack([traj[c].isel(time=1).values for c in ("node_x", "node_y", "node_z")], 1),
                          traj["face_node_connectivity"].values)
     ft = traj["face_tension"].isel(time=1).values
     assert float(ds["face_tension_mean"][1]) == pytest.approx((ft * a).sum() / a.sum())
@@ -132,17 +134,17 @@ def test_spectra_values_t_star_l_star(spectra):
 
 
 def test_spectra_stride_lmax_and_maps(traj):
-    ds = D.spectra_from_trajectory(traj, l_max=12, stride=2, map_shape=(8, 16))
+    ds = spectra_from_trajectory(traj, l_max=12, stride=2, map_shape=(8, 16))
     assert ds.sizes["time"] == 4 and ds.sizes["l"] == 13
     np.testing.assert_array_equal(ds["time"].values, TIMES[::2])
     assert ds["A_p_map"].dims == ("time", "theta", "phi") and ds["A_p_map"].shape == (4, 8, 16)
     assert np.all(np.isfinite(ds["A_p_map"].values))
     with pytest.warns(H.ResolutionWarning):
-        D.spectra_from_trajectory(traj.isel(time=[0]), l_max=60)
+        spectra_from_trajectory(traj.isel(time=[0]), l_max=60)
 
 
 def test_t_star_undefined_without_reversal(traj):
-    ds = D.spectra_from_trajectory(traj.isel(time=[0, 1]), l_max=8)
+    ds = spectra_from_trajectory(traj.isel(time=[0, 1]), l_max=8)
     assert np.isnan(float(ds["t_star"])) and np.isnan(float(ds["l_star"]))
     assert int(ds["l_max_nontrivial"]) == -1
 

@@ -10,8 +10,9 @@ import xarray as xr
 
 from vesicle_core.cli import main
 from vesicle_core.geometry import mesh as M
+from vesicle_core.model.run_config import RunConfig
 from vesicle_core.model.units import SCALE_ATTRS, SOLVER_UNITS, cf_unit_attrs
-from vesicle_core.solver.simulate import RunConfig, run
+from vesicle_core.solver.simulate import run
 from vesicle_core.solver.trajectory import _as_ugrid
 
 KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")

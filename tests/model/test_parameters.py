@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_runconfig_is_the_table():
     from dataclasses import MISSING, fields
 
-    from vesicle_core.solver.simulate import RunConfig
+    from vesicle_core.model.run_config import RunConfig
 
     f = {x.name: x for x in fields(RunConfig)}
     assert list(f) == [p.name for p in P.RUN_PARAMETERS]
@@ -71,9 +71,9 @@ def test_schema_and_table_accept_the_same_values(table, section):
 
 def test_choices_match_the_code():
     from vesicle_core.geometry.mesh import FAMILIES
+    from vesicle_core.model.resolution import KERNELS
     from vesicle_core.solver import membrane as B
     from vesicle_core.solver.integrators import SCHEMES
-    from vesicle_core.solver.kernels import KERNELS
     from vesicle_core.solver.seeding import SEED_SPECTRA
 
     assert set(P.RUN["scheme"].choices) == set(SCHEMES)

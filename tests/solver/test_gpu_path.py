@@ -31,7 +31,8 @@ def test_cupy_backend_is_selected_and_takes_gpu_branches(fake_cupy):
 @pytest.mark.parametrize("scheme,coupling", [("projection", "kernel"), ("inextensible", "kernel"),
                                              ("projection", "sharp")])
 def test_a_run_on_the_gpu_path_matches_numpy(fake_cupy, tmp_path, scheme, coupling):
-    from vesicle_core.solver.simulate import RunConfig, run
+    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.solver.simulate import run
 
     _, calls = fake_cupy
     m = M.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))

@@ -74,7 +74,7 @@ def test_every_kernel_partitions_unity_with_zero_first_moment(kernel, width, sum
 
 
 def test_wider_kernels_smear_modes_more():
-    from vesicle_core.solver.kernels import mode_damping
+    from vesicle_core.model.resolution import mode_damping
 
     d = [mode_damping(10, 0.05, k) for k in ("roma3", "peskin4", "bao6")]
     assert d[0] > d[1] > d[2]

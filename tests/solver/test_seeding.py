@@ -7,11 +7,12 @@ import pytest
 import xarray as xr
 
 from vesicle_core.analysis import harmonics as H
-from vesicle_core.analysis.theory import initial_state
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as M
+from vesicle_core.model.modes import initial_state
+from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.seeding import thermal_coefficients, thermal_seed
-from vesicle_core.solver.simulate import RunConfig, run
+from vesicle_core.solver.simulate import run
 
 DELTA, S = 0.116, 553.0
 

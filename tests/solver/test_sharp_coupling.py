@@ -171,7 +171,7 @@ def test_sharp_coupling_resolves_more_modes_per_grid_node():
 def test_sharp_mode_damping_describes_the_measured_rates():
     """kernels.mode_damping(coupling="sharp") (fitted at N = 64-192) against a fresh measurement at N = 32, a grid
     outside the fit: the adaptive step relies on it to know which wrinkles the grid can grow."""
-    from vesicle_core.solver.kernels import mode_damping
+    from vesicle_core.model.resolution import mode_damping
     from vesicle_core.validation.relaxation import resolution_table
 
     ls = (6, 8, 10)

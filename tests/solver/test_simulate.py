@@ -11,7 +11,10 @@ import xarray as xr
 
 from vesicle_core.errors import ConfigError, NumericalInstability
 from vesicle_core.geometry import mesh as M
-from vesicle_core.solver.simulate import CHECKPOINT, FAILURE, PARTIAL, TRAJECTORY, IBMSolver, RunConfig, run
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.mobility import IBMSolver
+from vesicle_core.solver.simulate import run
+from vesicle_core.solver.trajectory import CHECKPOINT, FAILURE, PARTIAL, TRAJECTORY
 
 
 def _mesh(level=2, axes=(1.0, 0.8, 1.0)):

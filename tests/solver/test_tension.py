@@ -7,16 +7,10 @@ import xarray as xr
 
 from vesicle_core.errors import NumericalInstability
 from vesicle_core.geometry import mesh as Mm
+from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver import membrane as B
-from vesicle_core.solver.mobility import IBMMobility
-from vesicle_core.solver.simulate import (
-    CHECKPOINT,
-    FAILURE,
-    TRAJECTORY,
-    IBMSolver,
-    RunConfig,
-    run,
-)
+from vesicle_core.solver.mobility import IBMMobility, IBMSolver
+from vesicle_core.solver.simulate import run
 from vesicle_core.solver.tension import (
     TensionSolver,
     cell_areas,
@@ -27,6 +21,7 @@ from vesicle_core.solver.tension import (
     vertex_DT,
     vertex_mean,
 )
+from vesicle_core.solver.trajectory import CHECKPOINT, FAILURE, TRAJECTORY
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,10 @@ import xarray as xr
 
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as Mm
+from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver import membrane as B
-from vesicle_core.solver.mobility import IBMMobility
-from vesicle_core.solver.simulate import IBMSolver, RunConfig, run
+from vesicle_core.solver.mobility import IBMMobility, IBMSolver
+from vesicle_core.solver.simulate import run
 from vesicle_core.solver.tension import face_D, face_DT
 from vesicle_core.solver.tension_harmonic import HarmonicSpace, HarmonicTensionSolver, default_l_max, inf_sup, real_ylm
 
@@ -222,7 +223,7 @@ def test_harmonic_tension_relaxes_a_mode_as_the_grid_allows(l):
 def test_failed_harmonic_tension_solve_stops_the_run(tmp_path):
     """As with the triangle tension: an unconverged CG stops the run with a failure file, never a silent step."""
     from vesicle_core.errors import NumericalInstability
-    from vesicle_core.solver.simulate import FAILURE, TRAJECTORY
+    from vesicle_core.solver.trajectory import FAILURE, TRAJECTORY
 
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
     cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,

@@ -5,6 +5,7 @@ import pytest
 
 from vesicle_core.analysis import theory as T
 from vesicle_core.errors import ConfigError
+from vesicle_core.model.modes import default_l_max
 from vesicle_core.validation.cutoff import DEFAULT_LMAX_LABEL, exponent_vs_lmax
 
 DELTA = 0.116
@@ -30,7 +31,7 @@ def test_layout(ds):
         assert ds[name].dims == ("l_max", "S")
     for name in ("b", "b_low", "b_high", "prefactor", "n_truncated", "l_peak_b"):
         assert ds[name].dims == ("l_max",)
-    assert ds["l_max_used"].sel(l_max=DEFAULT_LMAX_LABEL).values.tolist() == [T.default_l_max(s) for s in S]
+    assert ds["l_max_used"].sel(l_max=DEFAULT_LMAX_LABEL).values.tolist() == [default_l_max(s) for s in S]
 
 
 def test_each_entry_is_the_projects_solve(ds):

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from vesicle_core.analysis.theory import a_l, gamma_l
+from vesicle_core.model.modes import a_l, gamma_l
 from vesicle_core.validation.relaxation import clean_mobility, l_res, mode_rate, theory_rate
 
 

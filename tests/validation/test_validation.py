@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from vesicle_core.analysis.spectra import spectra_from_trajectory
 from vesicle_core.analysis.theory import run_theory
-from vesicle_core.data.datasets import spectra_from_trajectory
 from vesicle_core.geometry import mesh as M
-from vesicle_core.solver.simulate import RunConfig, run
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.simulate import run
 from vesicle_core.validation.report import box_comparison, collect, render, stage1_growth
 
 
@@ -113,7 +114,7 @@ def test_image_extrapolation_recovers_the_unbounded_value():
 def test_pa_stretch_tension_mirrors_the_reversed_tension():
     """After the reversal the PA starts from the same shape with the flow reversed: sigma(0+) = -(S + Gamma_2)/A_2,
     so the stretch value (S - Gamma_2)/A_2 differs from -sigma(0+) by 2 Gamma_2 / A_2 (eq. 12)."""
-    from vesicle_core.analysis.theory import a_l, gamma_l
+    from vesicle_core.model.modes import a_l, gamma_l
     from vesicle_core.validation.report import pa_stretch_tension
 
     th = run_theory(0.116, 553.0, n_out=20, store_modes=False, kT_over_kappa=1e-12)  # no thermal share of u_22

@@ -1,21 +1,8 @@
 """Spherical-harmonic analysis of a triangulated vesicle (Sec. III eq. 10, Sec. V eqs. 30-32).
 
-Conventions
------------
-* Lengths in R. Complex, orthonormal spherical harmonics with the Condon-Shortley phase, identical to
-  ``scipy.special.sph_harm_y(l, m, theta, phi)`` (theta polar, phi azimuth)::
-
-      Y_lm = sqrt((2l+1)/(4 pi) (l-m)!/(l+m)!) P_l^m(cos theta) exp(i m phi),   Y_{l,-m} = (-1)^m conj(Y_lm)
-
-  They are evaluated by the standard stable three-term recurrence of the normalised associated Legendre
-  functions (one pass per order m, nothing of size (n_modes x n_points) is ever stored): a whole snapshot
-  (:func:`analyze_snapshot`) takes ~0.06 s at l_max = 32 on 2*10^4 triangles, ~0.5 s at l_max = 64 on 5*10^4.
-* Coefficient arrays have shape (..., l_max + 1, 2 l_max + 1): ``u[..., l, l_max + m]`` is u_lm; entries with
-  |m| > l are 0 (datasets.py stores them as NaN). All analysed fields are real, so u_{l,-m} = (-1)^m conj(u_lm);
-  only m >= 0 is computed and the rest filled by that symmetry.
-* Projection uses conj(Y_lm): c_lm = sum_i f_i conj(Y_lm(theta_i, phi_i)) dOmega_i. Eq. (30) and (32) print Y_lm;
-  for a real field that gives conj(c_lm) = (-1)^m c_{l,-m}, which has the same |c_lm| and Delta_l, but only the
-  conjugated projection inverts eq. (10) (r = R [1 + sum c_lm Y_lm]).
+Conventions of the basis (Y_lm, coefficient layout, conjugated projection): :mod:`vesicle_core.geometry.ylm`.
+The surface quantities (areas, volume centroid, solid angles, normals, PN patch centres):
+:mod:`vesicle_core.geometry.surface`.
 
 Scaled amplitudes (eq. 30)
 --------------------------
@@ -67,23 +54,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, MeshError, check_range
+from ..errors import ConfigError, check_choice, check_range
+from ..geometry.surface import (
+    _as_mesh,
+    _equivalent_radius,
+    pn_centers,
+    resolvable_l_max,
+    solid_angles,
+    volume_centroid,
+)
+from ..geometry.ylm import _angles, _check_lmax, project, synthesize
 
 __all__ = [
     "ResolutionWarning",
-    "volume_centroid",
-    "triangle_areas",
-    "solid_angles",
-    "resolvable_l_max",
     "Quadrature",
     "quadrature",
-    "vertex_normals",
-    "pn_centers",
     "field_spectrum",
     "resolved_field",
-    "project",
-    "synthesize",
-    "ylm",
     "scale_factors",
     "decompose",
     "delta_l",
@@ -105,125 +92,11 @@ RULES = ("pn", "vertex", "centroid")
 AMPLITUDE_AT = ("triangles", "nodes", "vertices")
 #: |u_lm| above which a mode counts as nontrivial: the l_max of Sec. V.A is the largest such l at t_*
 NONTRIVIAL_THRESHOLD = 1e-5
+METHODS = ("eq31", "peak")  # of characteristic_l: eq. (31) or the dominant mode (Sec. V.A)
 
 
 class ResolutionWarning(UserWarning):
     """l_max asks for wavelengths the mesh cannot represent (more than about one mode per two edges)."""
-
-
-# --------------------------------------------------------------------------- geometry
-def _as_mesh(vertices, faces):
-    v = np.asarray(vertices, dtype=float)
-    f = np.asarray(faces)
-    if v.ndim != 2 or v.shape[1] != 3:
-        raise MeshError(f"vertices must have shape (V, 3), got {v.shape}")
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise MeshError(f"faces must have shape (F, 3), got {f.shape}")
-    if not np.issubdtype(f.dtype, np.integer):
-        raise MeshError(f"faces must hold integer vertex indices, got dtype {f.dtype}")
-    if len(f) == 0 or f.min() < 0 or f.max() >= len(v):
-        raise MeshError(f"face indices must lie in [0, {len(v) - 1}]")
-    if not np.all(np.isfinite(v)):
-        raise MeshError("vertices contain NaN or Inf")
-    return v, f.astype(np.int64, copy=False)
-
-
-def triangle_areas(vertices, faces) -> np.ndarray:
-    """Area of every triangle, shape (F,)."""
-    v, f = _as_mesh(vertices, faces)
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-
-
-def volume_centroid(vertices, faces) -> np.ndarray:
-    """Centroid of the solid enclosed by a closed, outward-oriented surface (sum over tetrahedra to a
-    reference point; computed relative to the vertex mean to avoid round-off far from the origin)."""
-    v, f = _as_mesh(vertices, faces)
-    o = v.mean(axis=0)
-    a, b, c = v[f[:, 0]] - o, v[f[:, 1]] - o, v[f[:, 2]] - o
-    vol = np.einsum("ij,ij->i", a, np.cross(b, c)) / 6.0
-    V = vol.sum()
-    if not V > 0:
-        raise MeshError(f"enclosed volume is {V:g}; the surface must be closed with outward normals")
-    return o + (vol[:, None] * (a + b + c)).sum(axis=0) / (4.0 * V)
-
-
-def solid_angles(vertices, faces, center) -> np.ndarray:
-    """Signed solid angle each triangle subtends at ``center`` (Van Oosterom & Strackee 1983).
-
-    Positive for triangles seen counter-clockwise from the centre's outside; sums to 4 pi on a closed outward
-    surface enclosing ``center``.
-    """
-    v, f = _as_mesh(vertices, faces)
-    c0 = np.asarray(center, dtype=float)
-    a, b, c = v[f[:, 0]] - c0, v[f[:, 1]] - c0, v[f[:, 2]] - c0
-    la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
-    num = np.einsum("ij,ij->i", a, np.cross(b, c))
-    den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb
-           + np.einsum("ij,ij->i", b, c) * la)
-    return 2.0 * np.arctan2(num, den)
-
-
-def _equivalent_radius(v, f) -> float:
-    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
-    vol = float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
-    if not vol > 0:
-        raise MeshError(f"enclosed volume is {vol:g}; the surface must be closed with outward normals")
-    return (3.0 * vol / (4.0 * math.pi)) ** (1.0 / 3.0)
-
-
-def resolvable_l_max(vertices, faces, R=None) -> int:
-    """Largest l the mesh resolves: floor(pi / h), h the mean edge length in radians (h / R).
-
-    A mode l has wavelength 2 pi R / l; representing it needs at least two edges per wavelength.
-    Unit icosphere levels 3 / 4 / 5 / 6 give 41 / 83 / 167 / 334 (mean edge 0.075 / 0.038 / 0.019 / 0.0094 R) --
-    note that at level 3 this is about 20.
-    """
-    v, f = _as_mesh(vertices, faces)
-    if R is None:
-        R = _equivalent_radius(v, f)
-    # on a closed mesh every edge borders exactly two faces, so the mean over face edges is the mean edge
-    e = v[f[:, [1, 2, 0]]] - v[f]
-    h = np.linalg.norm(e, axis=2).mean() / R
-    return int(math.floor(math.pi / h))
-
-
-def vertex_normals(vertices, faces) -> np.ndarray:
-    """Unit vertex normals with Max's (1999) weights (face normal / (|e1|^2 |e2|^2) per incident corner), exact for
-    vertices on a sphere; outward for an outward-oriented mesh."""
-    v, f = _as_mesh(vertices, faces)
-    n = np.zeros_like(v)
-    for k in range(3):
-        p = v[f[:, k]]
-        e1 = v[f[:, (k + 1) % 3]] - p
-        e2 = v[f[:, (k + 2) % 3]] - p
-        c = np.cross(e1, e2) / (np.einsum("ij,ij->i", e1, e1) * np.einsum("ij,ij->i", e2, e2))[:, None]
-        for d in range(3):
-            n[:, d] += np.bincount(f[:, k], weights=c[:, d], minlength=len(v))
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    norm[norm == 0] = 1.0
-    return n / norm
-
-
-def pn_centers(vertices, faces, normals=None) -> np.ndarray:
-    """Centre (barycentric 1/3, 1/3, 1/3) of the cubic PN triangle (Vlachos et al. 2001) of every face: the
-    curved patch through the three vertices, tangent to the vertex normals. It lies on the smooth surface the
-    membrane points sample (on a sphere mesh: within O(h^4) of the sphere), not inside it like the flat centroid."""
-    v, f = _as_mesh(vertices, faces)
-    N = vertex_normals(v, f) if normals is None else np.asarray(normals, float)
-    P = [v[f[:, k]] for k in range(3)]
-    Nk = [N[f[:, k]] for k in range(3)]
-
-    def b(i, j):  # edge control point near vertex i on edge ij: (2 P_i + P_j - ((P_j - P_i).N_i) N_i) / 3
-        w = np.einsum("ij,ij->i", P[j] - P[i], Nk[i])[:, None]
-        return (2.0 * P[i] + P[j] - w * Nk[i]) / 3.0
-
-    edge = b(0, 1) + b(1, 0) + b(1, 2) + b(2, 1) + b(2, 0) + b(0, 2)
-    V = (P[0] + P[1] + P[2]) / 3.0
-    E = edge / 6.0
-    b111 = E + 0.5 * (E - V)
-    # Bernstein weights at (1/3, 1/3, 1/3): corners 1/27, edge points 3/27, centre 6/27
-    return (P[0] + P[1] + P[2]) / 27.0 + edge / 9.0 + (2.0 / 9.0) * b111
 
 
 @dataclass
@@ -268,15 +141,6 @@ def _check_choice(name, value, allowed):
         raise ConfigError(f"{name} must be one of {allowed}, got {value!r}")
 
 
-def _angles(rel):
-    r = np.linalg.norm(rel, axis=1)
-    if np.any(r == 0):
-        raise MeshError("a quadrature node coincides with the centre; the surface is not star-shaped about it")
-    theta = np.arccos(np.clip(rel[:, 2] / r, -1.0, 1.0))
-    phi = np.arctan2(rel[:, 1], rel[:, 0])
-    return r, theta, phi
-
-
 def quadrature(vertices, faces, center=None, R=None, rule="pn", weights="solid_angle") -> Quadrature:
     """Quadrature of eq. (30) on a closed triangulated surface (see the module docstring for the choices).
 
@@ -312,105 +176,6 @@ def quadrature(vertices, faces, center=None, R=None, rule="pn", weights="solid_a
         w = np.concatenate([to_vertices(0.25 * w_tri), 0.75 * w_tri])
     r, theta, phi = _angles(pts)
     return Quadrature(rule, weights, c0, float(R), pts + c0, theta, phi, r, w, areas, f, len(v))
-
-
-# --------------------------------------------------------------------------- spherical harmonics
-def _legendre_rows(x, s, l_max):
-    """Yield (m, P) for m = 0..l_max with P[l - m] = normalised P_lm(x) (incl. 1/sqrt(4 pi) and the
-    Condon-Shortley phase), l = m..l_max, so that Y_lm = P[l - m] exp(i m phi)."""
-    n = x.shape[0]
-    pmm = np.full(n, 1.0 / math.sqrt(4.0 * math.pi))
-    for m in range(l_max + 1):
-        if m > 0:
-            pmm = -math.sqrt((2.0 * m + 1.0) / (2.0 * m)) * s * pmm
-        P = np.empty((l_max - m + 1, n))
-        P[0] = pmm
-        if m < l_max:
-            P[1] = math.sqrt(2.0 * m + 3.0) * x * pmm
-        for l in range(m + 2, l_max + 1):
-            a = math.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
-            b = math.sqrt(((l - 1.0) ** 2 - m * m) / (4.0 * (l - 1.0) ** 2 - 1.0))
-            np.multiply(x, P[l - m - 1], out=P[l - m])
-            P[l - m] -= b * P[l - m - 2]
-            P[l - m] *= a
-        yield m, P
-
-
-def _check_lmax(l_max):
-    return int(check_range("l_max", l_max, 0, 1000, integer=True))
-
-
-def project(values, theta, phi, weights, l_max) -> np.ndarray:
-    """Quadrature c_lm = sum_i values_i conj(Y_lm(theta_i, phi_i)) weights_i for real ``values``.
-
-    values: (N,) or (k, N) real; returns complex (l_max+1, 2 l_max+1) or (k, l_max+1, 2 l_max+1), index [l, l_max + m],
-    zero where |m| > l. Negative m follow from c_{l,-m} = (-1)^m conj(c_lm).
-    """
-    l_max = _check_lmax(l_max)
-    vals = np.asarray(values)
-    if np.iscomplexobj(vals):
-        raise ConfigError("project() expects a real field (negative m are filled by the reality condition)")
-    vals = vals.astype(float, copy=False)
-    single = vals.ndim == 1
-    vals = np.atleast_2d(vals)
-    theta = np.asarray(theta, float).ravel()
-    phi = np.asarray(phi, float).ravel()
-    w = np.asarray(weights, float).ravel()
-    if not (vals.shape[1] == theta.size == phi.size == w.size):
-        raise ConfigError(f"values, theta, phi and weights must have the same length, got "
-                          f"{vals.shape[1]}, {theta.size}, {phi.size}, {w.size}")
-    k = vals.shape[0]
-    out = np.zeros((k, l_max + 1, 2 * l_max + 1), dtype=complex)
-    fw = vals * w[None, :]
-    x, s = np.cos(theta), np.sin(theta)
-    step = np.exp(-1j * phi)
-    em = np.ones_like(step)  # exp(-i m phi), advanced by one complex product per order
-    G = np.empty((2 * k, theta.size))
-    for m, P in _legendre_rows(x, s, l_max):
-        if m:
-            em *= step
-        np.multiply(fw, em.real, out=G[:k])
-        np.multiply(fw, em.imag, out=G[k:])
-        cg = P @ G.T  # (l_max - m + 1, 2k)
-        c = cg[:, :k] + 1j * cg[:, k:]
-        out[:, m:, l_max + m] = c.T
-        if m:
-            out[:, m:, l_max - m] = (-1) ** m * np.conj(c.T)
-    return out[0] if single else out
-
-
-def synthesize(coeffs, theta, phi) -> np.ndarray:
-    """Real field sum_lm c_lm Y_lm(theta, phi) for coefficients of a real field (shape (l_max+1, 2 l_max+1),
-    only m >= 0 are read); theta, phi any broadcastable shapes. Inverse of :func:`project` on a fine quadrature."""
-    c = np.asarray(coeffs)
-    l_max = c.shape[-2] - 1
-    if c.shape[-1] != 2 * l_max + 1:
-        raise ConfigError(f"coefficients must have shape (l_max+1, 2 l_max+1), got {c.shape}")
-    theta, phi = np.broadcast_arrays(np.asarray(theta, float), np.asarray(phi, float))
-    shape = theta.shape
-    th, ph = theta.ravel(), phi.ravel()
-    out = np.zeros(th.size)
-    for m, P in _legendre_rows(np.cos(th), np.sin(th), l_max):
-        s = c[m:, l_max + m] @ P  # sum_l c_lm P_lm, complex (N,)
-        val = s * np.exp(1j * m * ph)
-        out += val.real if m == 0 else 2.0 * val.real
-    return out.reshape(shape)
-
-
-def ylm(l_max, theta, phi) -> np.ndarray:
-    """All Y_lm at the given points, complex (l_max+1, 2 l_max+1, N) (zero where |m| > l).
-
-    For checks and small point sets only (memory grows as l_max^2 N); the analysis never builds it."""
-    l_max = _check_lmax(l_max)
-    th = np.asarray(theta, float).ravel()
-    ph = np.asarray(phi, float).ravel()
-    out = np.zeros((l_max + 1, 2 * l_max + 1, th.size), dtype=complex)
-    for m, P in _legendre_rows(np.cos(th), np.sin(th), l_max):
-        y = P * np.exp(1j * m * ph)[None, :]
-        out[m:, l_max + m] = y
-        if m:
-            out[m:, l_max - m] = (-1) ** m * np.conj(y)
-    return out
 
 
 def scale_factors(l_max, delta) -> np.ndarray:
@@ -498,13 +263,40 @@ def l_max_nontrivial(u, threshold=NONTRIVIAL_THRESHOLD):
     return int(out) if np.ndim(out) == 0 else out.astype(int)
 
 
-def characteristic_l(Delta_l, l_max=None, *, method="eq31"):
-    """Characteristic wrinkle mode l_*: eq. (31) (``method="eq31"``) or the dominant mode argmax_{l>=3} Delta_l
-    (``method="peak"``, Sec. V.A). Delegates to :func:`vesicle_core.analysis.theory.characteristic_l`, so simulation and
-    perturbation analysis compute l_* with the same code."""
-    from .theory import characteristic_l as _cl
+def characteristic_l(Delta_l, l_max=None, *, l_min=3, method="eq31"):
+    """Characteristic wrinkle mode l_* from Delta_l = sum_m |u_lm|^2 (arrays (..., L) indexed by l from 0).
 
-    return _cl(Delta_l, l_max, method=method)
+    ``method="eq31"`` (default), eq. (31)::
+
+        l_*^2 = sum_{l_min<=l<=l_max} l^2/(l^2+l-2) Delta_l / sum_{l_min<=l<=l_max} 1/(l^2+l-2) Delta_l
+
+    (the rms l of the unscaled spectrum |c_lm|^2 = Delta |u_lm|^2/((l-1)(l+2))); NaN where the denominator
+    vanishes. ``method="peak"``: argmax_{l_min<=l<=l_max} Delta_l as a float (NaN if all zero), the definition
+    at the start of Sec. V.A. l_max: int or array broadcastable to the leading shape (default L-1; pass
+    :func:`nontrivial_l_max` at t_* to follow the paper). NaN entries count as 0. The same function serves the
+    PA and the simulation spectra, so their l_* are computed identically.
+    """
+    check_choice("method", method, METHODS)
+    check_range("l_min", l_min, 2, None, integer=True)
+    D = np.nan_to_num(np.asarray(Delta_l, dtype=float), nan=0.0)
+    if D.ndim == 0:
+        raise ConfigError("Delta_l must be an array indexed by l")
+    L = D.shape[-1]
+    l = np.arange(L, dtype=float)
+    lm = np.asarray(L - 1 if l_max is None else l_max)
+    mask = (l >= l_min) & (l <= lm[..., None])
+    if method == "peak":
+        Dm = np.where(mask, D, -np.inf)
+        idx = np.argmax(Dm, axis=-1)
+        best = np.take_along_axis(Dm, idx[..., None], axis=-1)[..., 0]
+        out = np.where(best > 0, idx.astype(float), np.nan)
+    else:
+        g = np.where(l >= 2, (l - 1) * (l + 2), 1.0)
+        num = np.where(mask, l**2 / g * D, 0.0).sum(axis=-1)
+        den = np.where(mask, D / g, 0.0).sum(axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out = np.where(den > 0, np.sqrt(num / np.where(den > 0, den, 1.0)), np.nan)
+    return float(out) if np.ndim(out) == 0 else out
 
 
 # --------------------------------------------------------------------------- ellipsoid fit and wrinkles
@@ -751,52 +543,5 @@ def analyze_snapshot(vertices, faces, l_max, delta=None, R=None, *, rule="pn", w
 
 # --------------------------------------------------------------------------- mesh bias (issue 7)
 #: degrees at which the icosahedral group has invariant harmonics (l <= 30), and the even degrees without any
-ICOSAHEDRAL_DEGREES = (6, 10, 12)
-NON_ICOSAHEDRAL_DEGREES = (8, 14)
 
 
-def icosahedron_directions() -> np.ndarray:
-    """Unit vectors to the 12 vertices of the icosahedron from which ``mesh.icosphere`` is subdivided
-    (its five-fold vertices; in an ellipsoid mapped from it they keep indices 0..11)."""
-    from ..geometry.mesh import icosphere
-
-    return icosphere(0)[0]
-
-
-def vertex_valence(faces, n_vertices) -> np.ndarray:
-    f = np.asarray(faces)
-    return np.bincount(f.ravel(), minlength=n_vertices)  # closed triangle mesh: faces per vertex = valence
-
-
-def mesh_bias(vertices, faces, ellipsoid, Delta_tilde_l=None) -> dict:
-    """How strongly the wrinkle pattern follows the mesh rather than the membrane.
-
-    * ``defect_amplitude_ratio``: rms wrinkle amplitude A_p at the mesh's topological defects (vertices of
-      valence != 6) over its rms at all vertices. ~1 when wrinkles ignore the defects; >> 1 when they pin to
-      them (the icosphere's 12 five-fold vertices).
-    * ``icosahedral_amplitude_ratio``: the same at the vertices nearest to the 12 icosahedron directions
-      (measured the same way on any mesh family, so it is a control for non-icosphere meshes).
-    * ``icosahedral_power_ratio``: mean Delta~_l over l = 6, 10, 12 (the degrees that carry icosahedrally
-      invariant harmonics) over the mean at the even degrees 8, 14 that carry none; ~1 for a smooth
-      unbiased spectrum. Needs ``Delta_tilde_l`` (indexed by l) reaching l = 14, else NaN.
-    """
-    v, f = _as_mesh(vertices, faces)
-    ap = wrinkle_amplitude(v, f, ellipsoid, at="vertices")
-    rms = math.sqrt(float(np.mean(ap**2)))
-    val = vertex_valence(f, len(v))
-    defects = val != 6
-    c = v - v.mean(axis=0)
-    dirs = c / np.linalg.norm(c, axis=1, keepdims=True)
-    ico = np.unique(np.argmax(dirs @ icosahedron_directions().T, axis=0))
-    out = {
-        "defect_amplitude_ratio": (math.sqrt(float(np.mean(ap[defects] ** 2))) / rms
-                                   if defects.any() and rms > 0 else math.nan),
-        "icosahedral_amplitude_ratio": math.sqrt(float(np.mean(ap[ico] ** 2))) / rms if rms > 0 else math.nan,
-        "n_defects": int(defects.sum()),
-        "icosahedral_power_ratio": math.nan,
-    }
-    if Delta_tilde_l is not None and len(Delta_tilde_l) > max(NON_ICOSAHEDRAL_DEGREES):
-        D = np.asarray(Delta_tilde_l, dtype=float)
-        den = D[list(NON_ICOSAHEDRAL_DEGREES)].mean()
-        out["icosahedral_power_ratio"] = float(D[list(ICOSAHEDRAL_DEGREES)].mean() / den) if den > 0 else math.nan
-    return out

@@ -15,7 +15,10 @@ import xarray as xr
 
 from ..data.datasets import _connectivity, cf_attrs, netcdf_safe_attrs, validate_trajectory
 from ..errors import check_range
+from ..geometry import surface as Sf
+from ..geometry import ylm as Yl
 from . import harmonics as H
+from . import mesh_bias as MB
 
 __all__ = ["DEFAULT_LMAX_CAP", "spectra_from_trajectory"]
 
@@ -47,7 +50,7 @@ def spectra_from_trajectory(
 ) -> xr.Dataset:
     """Spherical-harmonic analysis (Sec. V) of every ``stride``-th snapshot of a trajectory.
 
-    l_max: default the largest the mesh resolves (:func:`harmonics.resolvable_l_max`), capped at 64; a larger
+    l_max: default the largest the mesh resolves (:func:`surface.resolvable_l_max`), capped at 64; a larger
     value warns ResolutionWarning. delta: Delta of the eq. (30) scale factor (default: the trajectory's ``delta``
     attribute, else the first snapshot's meshed excess area). rule / weights: quadrature (harmonics docstring).
     threshold: |u_lm| above which a mode counts as nontrivial (l_max of Sec. V.A). map_shape (n_theta, n_phi):
@@ -82,7 +85,7 @@ def spectra_from_trajectory(
                         axis=1)
 
     v0 = vertices_at(0)
-    l_res = H.resolvable_l_max(v0, faces)
+    l_res = Sf.resolvable_l_max(v0, faces)
     if l_max is None:
         l_max = max(2, min(DEFAULT_LMAX_CAP, l_res))
     l_max = int(check_range("l_max", l_max, 2, 1000, integer=True))
@@ -128,7 +131,7 @@ def spectra_from_trajectory(
         cen[k], ax[k], rot[k] = r["ellipsoid"]
         xc[k] = r["center"]
         if maps is not None:
-            maps[k] = r["R"] * H.synthesize(ut[k], TH, PH)
+            maps[k] = r["R"] * Yl.synthesize(ut[k], TH, PH)
 
     l = np.arange(L)
     m = np.arange(-l_max, l_max + 1)
@@ -146,7 +149,7 @@ def spectra_from_trajectory(
     bias = {"defect_amplitude_ratio": math.nan, "icosahedral_amplitude_ratio": math.nan,
             "icosahedral_power_ratio": math.nan, "n_defects": -1}
     if i_star >= 0:
-        bias = H.mesh_bias(vertices_at(i_star), faces, (cen[i_star], ax[i_star], rot[i_star]), Dt[i_star])
+        bias = MB.mesh_bias(vertices_at(i_star), faces, (cen[i_star], ax[i_star], rot[i_star]), Dt[i_star])
 
     coords = {
         "time": ("time", time, dict(sub["time"].attrs) or {"units": "1", "long_name": "gamma_dot (t - t_reverse)"}),

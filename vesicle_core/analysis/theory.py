@@ -90,40 +90,39 @@ Fig. 4's sweep (15 S in [100, 9500], Delta = 0.116) gives l_* ~ S^0.43 by eq. (3
 (see :func:`sweep`), steeper than the paper's 0.372 and Turitsyn's asymptotic 1/3; the paper's own pair
 (553, 14), (2224, 25) implies a local slope of 0.418.
 
-Public API: :func:`gamma_l`, :func:`a_l`, :func:`thermal_variance`, :func:`initial_state`, :func:`delta_l`,
-:func:`global_tension`, :func:`mode_rhs`, :func:`nontrivial_l_max`, :func:`characteristic_l` (= :func:`l_star`),
-:func:`solve`, :func:`run_theory`, :func:`stage1_summary`, :func:`sweep`, :func:`default_l_max`,
-:func:`default_t_end`. :func:`delta_l` and :func:`nontrivial_l_max` are ``harmonics.delta_l`` and
-``harmonics.l_max_nontrivial`` (and :func:`characteristic_l` serves harmonics), so the PA and the simulation
-spectra compute Delta_l, l_max and l_* with the same code.
+Public API: :func:`global_tension`, :func:`mode_rhs`, :func:`l_star`, :func:`solve`, :func:`run_theory`,
+:func:`stage1_summary`, :func:`sweep`, :func:`default_t_end`. The linear mode physics (:func:`gamma_l`,
+:func:`a_l`, :func:`thermal_variance`, :func:`initial_state`, :func:`default_l_max`) is in
+:mod:`vesicle_core.model.modes`; Delta_l, l_max and l_* (:func:`delta_l`, :func:`l_max_nontrivial`,
+:func:`characteristic_l`) are in :mod:`vesicle_core.analysis.harmonics`, so the PA and the simulation spectra
+compute them with the same code.
 """
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ConfigError, check_range
-from ..model.units import Params, chi_from_S
-from .harmonics import NONTRIVIAL_THRESHOLD, delta_l
+from ..errors import ConfigError, check_choice, check_range
+from ..model.modes import (
+    NORMALISATIONS,
+    _check_lmax,
+    _kT,
+    a_l,
+    default_l_max,
+    gamma_l,
+    initial_state,
+)
+from ..model.units import chi_from_S
+from .harmonics import NONTRIVIAL_THRESHOLD, characteristic_l, delta_l
 from .harmonics import l_max_nontrivial as nontrivial_l_max
 
 __all__ = [
-    "NORMALISATIONS",
-    "gamma_l",
-    "a_l",
-    "thermal_variance",
-    "initial_state",
-    "delta_l",
     "global_tension",
     "mode_rhs",
-    "nontrivial_l_max",
-    "characteristic_l",
     "l_star",
-    "default_l_max",
     "default_t_end",
     "PASolution",
     "solve",
@@ -133,105 +132,11 @@ __all__ = [
 ]
 
 #: total sum |u_lm|^2 of each normalisation
-NORMALISATIONS = {"area": 2.0, "unit": 1.0}
-AMPLITUDES = ("fixed", "gaussian")
-THERMAL = ("literal", "physical")
-METHODS = ("eq31", "peak")
 
 _NORMALISATION_TEXT = {
     "area": "sum_{l>=2,m} |u_lm|^2 = 2 (scaled amplitudes of eq. 10 carrying the excess area Delta)",
     "unit": "sum_{l>=2,m} |u_lm|^2 = 1 (u_{2,+-2} = +-1/sqrt 2; equivalent to 'area' at S*sqrt 2)",
 }
-
-
-def _choice(name, value, allowed):
-    if value not in allowed:
-        raise ConfigError(f"{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
-    return value
-
-
-def gamma_l(l):
-    """Gamma_l = (l-1) l^2 (l+1)^2 (l+2) / (4l^3 + 6l^2 - 1) of eq. (11)."""
-    l = np.asarray(l, dtype=float)
-    return (l - 1) * l**2 * (l + 1) ** 2 * (l + 2) / (4 * l**3 + 6 * l**2 - 1)
-
-
-def a_l(l):
-    """A_l = l (l+1) (l^2 + l - 2) / (4l^3 + 6l^2 - 1) of eq. (11)."""
-    l = np.asarray(l, dtype=float)
-    return l * (l + 1) * (l**2 + l - 2) / (4 * l**3 + 6 * l**2 - 1)
-
-
-def _kT(kT_over_kappa):
-    if kT_over_kappa is None:
-        return Params().kT_over_kappa
-    check_range("kT_over_kappa", kT_over_kappa, 0.0, None)
-    return float(kT_over_kappa)
-
-
-def thermal_variance(l, S, kT_over_kappa=None, *, delta=None, thermal="literal"):
-    """Mean |u_lm|^2 of the initial thermal spectrum, 2 k_B T / (kappa (l^4 + S l^2 / A_2)) (Sec. V.A).
-
-    ``thermal="literal"`` puts it on the scaled u_lm (default, see module docstring); ``"physical"`` multiplies
-    by (l-1)(l+2)/delta (the formula read as the spectrum of the unscaled amplitude). Zero for l < 2.
-    """
-    _choice("thermal", thermal, THERMAL)
-    l = np.asarray(l, dtype=float)
-    kt = _kT(kT_over_kappa)
-    check_range("S", S, 0.0, None)
-    A2 = float(a_l(2))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        var = np.where(l >= 2, 2.0 * kt / (l**4 + S * l**2 / A2), 0.0)
-    if thermal == "physical":
-        if delta is None:
-            raise ConfigError("thermal='physical' needs delta")
-        check_range("delta", delta, 0.0, None, lo_open=True)
-        var = var * np.where(l >= 2, (l - 1) * (l + 2), 0.0) / float(delta)
-    return var
-
-
-def _check_lmax(l_max):
-    return check_range("l_max", l_max, 3, 2000, integer=True)
-
-
-def initial_state(l_max, S, *, delta=None, seed=0, kT_over_kappa=None, amplitudes="fixed", thermal="literal",
-                  normalisation="area"):
-    """Stationary stretched state of the forward flow plus the thermal spectrum, as a complex array.
-
-    Shape (l_max+1, 2 l_max+1), ``u[l, l_max + m]`` = u_lm (the layout of ``harmonics.py``); zero for |m| > l
-    and for l < 2. u_{2,+-2} is real and positive, fixed by sum |u|^2 = N of the normalisation.
-    """
-    L = _check_lmax(l_max)
-    _choice("amplitudes", amplitudes, AMPLITUDES)
-    _choice("normalisation", normalisation, tuple(NORMALISATIONS))
-    check_range("seed", seed, 0, None, integer=True)
-    N = NORMALISATIONS[normalisation]
-    var = thermal_variance(np.arange(L + 1), S, kT_over_kappa, delta=delta, thermal=thermal)
-    rng = np.random.default_rng(int(seed))
-    u = np.zeros((L + 1, 2 * L + 1), dtype=complex)
-    for l in range(2, L + 1):
-        sd = math.sqrt(var[l])
-        m = np.arange(1, l + 1)
-        if amplitudes == "fixed":
-            phase = rng.uniform(0.0, 2.0 * np.pi, size=l)
-            pos = sd * np.exp(1j * phase)
-            zero = sd * (1.0 if rng.random() < 0.5 else -1.0)
-        else:
-            z = rng.standard_normal((2, l))
-            pos = sd * (z[0] + 1j * z[1]) / math.sqrt(2.0)
-            zero = sd * float(rng.standard_normal())
-        u[l, L + m] = pos
-        u[l, L - m] = (-1.0) ** m * np.conj(pos)
-        u[l, L] = zero
-    u[2, L + 2] = u[2, L - 2] = 0.0
-    rest = float(np.sum(np.abs(u) ** 2))
-    if rest >= N:
-        raise ConfigError(
-            f"the thermal modes hold sum |u|^2 = {rest:.3g} >= {N:g}, the whole excess area "
-            f"(thermal={thermal!r}, l_max={L}); use thermal='literal' or a smaller l_max"
-        )
-    u[2, L + 2] = u[2, L - 2] = math.sqrt((N - rest) / 2.0)
-    return u
 
 
 def global_tension(u, S_t):
@@ -261,56 +166,7 @@ def mode_rhs(u, S_t, sigma=None):
     return du
 
 
-def characteristic_l(Delta_l, l_max=None, *, l_min=3, method="eq31"):
-    """Characteristic wrinkle mode l_* from Delta_l = sum_m |u_lm|^2 (arrays (..., L) indexed by l from 0).
-
-    ``method="eq31"`` (default), eq. (31)::
-
-        l_*^2 = sum_{l_min<=l<=l_max} l^2/(l^2+l-2) Delta_l / sum_{l_min<=l<=l_max} 1/(l^2+l-2) Delta_l
-
-    (the rms l of the unscaled spectrum |c_lm|^2 = Delta |u_lm|^2/((l-1)(l+2))); NaN where the denominator
-    vanishes. ``method="peak"``: argmax_{l_min<=l<=l_max} Delta_l as a float (NaN if all zero), the definition
-    at the start of Sec. V.A. l_max: int or array broadcastable to the leading shape (default L-1; pass
-    :func:`nontrivial_l_max` at t_* to follow the paper). NaN entries count as 0. The same function serves the
-    PA and the simulation spectra, so their l_* are computed identically.
-    """
-    _choice("method", method, METHODS)
-    check_range("l_min", l_min, 2, None, integer=True)
-    D = np.nan_to_num(np.asarray(Delta_l, dtype=float), nan=0.0)
-    if D.ndim == 0:
-        raise ConfigError("Delta_l must be an array indexed by l")
-    L = D.shape[-1]
-    l = np.arange(L, dtype=float)
-    lm = np.asarray(L - 1 if l_max is None else l_max)
-    mask = (l >= l_min) & (l <= lm[..., None])
-    if method == "peak":
-        Dm = np.where(mask, D, -np.inf)
-        idx = np.argmax(Dm, axis=-1)
-        best = np.take_along_axis(Dm, idx[..., None], axis=-1)[..., 0]
-        out = np.where(best > 0, idx.astype(float), np.nan)
-    else:
-        g = np.where(l >= 2, (l - 1) * (l + 2), 1.0)
-        num = np.where(mask, l**2 / g * D, 0.0).sum(axis=-1)
-        den = np.where(mask, D / g, 0.0).sum(axis=-1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out = np.where(den > 0, np.sqrt(num / np.where(den > 0, den, 1.0)), np.nan)
-    return float(out) if np.ndim(out) == 0 else out
-
-
 l_star = characteristic_l
-
-
-def _sigma0_magnitude(S, normalisation):
-    v0 = math.sqrt(NORMALISATIONS[normalisation] / 2.0)
-    return (S / v0 + float(gamma_l(2))) / float(a_l(2))
-
-
-def default_l_max(S, normalisation="area"):
-    """Default truncation: max(40, ceil(0.75 sqrt|sigma_0|) + 8), sigma_0 = -(S/u_22 + Gamma_2)/A_2 the stage-1
-    tension. Modes with l(l+1) > |sigma_0| never grow; the nontrivial modes at t_* (|u_lm| > 1e-5) stay below
-    ~0.75 sqrt|sigma_0| over S in [100, 9500] (e.g. l_max_nontrivial = 27, 47, 80 at S = 553, 2224, 9500 for
-    Delta = 0.116), and l_star changes by < 1e-5 (relative) when l_max is raised further."""
-    return int(max(40, math.ceil(0.75 * math.sqrt(_sigma0_magnitude(S, normalisation))) + 8))
 
 
 def default_t_end(delta, S):
@@ -436,11 +292,11 @@ def grid_damping(l, grid_h, kernel=None, coupling="kernel"):
 
     The IBM moves the membrane with the fluid velocity interpolated from forces spread by the kernel, so every
     membrane-driven rate of a mode l -- bending relaxation Gamma_l and tension A_l sigma alike -- is slowed by the
-    same factor, measured from single-mode relaxation on the grid (kernels.mode_damping: exp(-(l h / a)^2) for the
-    kernel coupling, exp(-(l h / a)^p) for the sharp one).
+    same factor, measured from single-mode relaxation on the grid (model.resolution.mode_damping:
+    exp(-(l h / a)^2) for the kernel coupling, exp(-(l h / a)^p) for the sharp one).
     The background flow is imposed at the vertices and is not filtered. ``grid_h`` None: the continuum (1).
     """
-    from ..solver.kernels import DEFAULT_KERNEL, mode_damping
+    from ..model.resolution import DEFAULT_KERNEL, mode_damping
 
     l = np.asarray(l, dtype=float)
     if grid_h is None:
@@ -466,7 +322,7 @@ def solve(delta, S, *, l_max=None, seed=0, t_end=None, kT_over_kappa=None, ampli
 
     check_range("delta", delta, 0.0, None, lo_open=True)
     check_range("S", S, 0.0, None, lo_open=True)
-    _choice("normalisation", normalisation, tuple(NORMALISATIONS))
+    check_choice("normalisation", normalisation, tuple(NORMALISATIONS))
     delta, S = float(delta), float(S)
     L = default_l_max(S, normalisation) if l_max is None else _check_lmax(l_max)
     chi = chi_from_S(S, delta)
@@ -536,10 +392,10 @@ def _theory_attrs(sol, normalisation, amplitudes, thermal, t_end, rtol, atol, gr
         "source": "vesicle_core.analysis.theory.run_theory",
     }
     if grid_h is not None:
-        from ..solver.kernels import DEFAULT_KERNEL
+        from ..model.resolution import DEFAULT_KERNEL
 
         attrs.update(grid_h=float(grid_h), kernel=kernel or DEFAULT_KERNEL, coupling=coupling or "kernel",
-                     grid_damping="Gamma_l and A_l times kernels.mode_damping(l, grid_h, kernel, coupling)")
+                     grid_damping="Gamma_l and A_l times model.resolution.mode_damping(l, grid_h, kernel, coupling)")
     return attrs
 
 

@@ -10,7 +10,7 @@ import os
 import sys
 
 from ..errors import check_range
-from ..solver.kernels import DEFAULT_KERNEL, KERNELS
+from ..model.resolution import DEFAULT_KERNEL, KERNELS
 from .args import int_in, positive_float
 
 

@@ -65,7 +65,7 @@ def add_run(sub):
     p = sub.add_parser("run", help="simulate a vesicle in the reversed elongational flow (resumes if interrupted)")
     p.add_argument("mesh", help="mesh file written by 'vesicle mesh'")
     p.add_argument("-o", "--outdir", required=True, help="run directory (trajectory.nc, checkpoint.nc)")
-    p.add_argument("-c", "--config", help="YAML file of run parameters (see vesicle_core.solver.simulate.RunConfig)")
+    p.add_argument("-c", "--config", help="YAML file of run parameters (see vesicle_core.model.run_config.RunConfig)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one run parameter (repeatable)")
     p.add_argument("--si", metavar="YAML", help="YAML of SI parameters (units.Params: R, gamma_dot, mu, kappa, rho, "
                    "L, ...) from which chi, Re and L are derived")

@@ -90,7 +90,7 @@ import numpy as np
 from ..errors import ConfigError, VesicleError
 from ..model.parameters import MESH_PARAMETERS, RUN_PARAMETERS
 from ..model.parameters import defaults as parameter_defaults
-from ..solver.kernels import DEFAULT_KERNEL  # also the kernel of files written before RunConfig.kernel existed
+from ..model.resolution import DEFAULT_KERNEL  # also the kernel of files written before RunConfig.kernel existed
 
 __all__ = [
     "COLUMNS",

@@ -13,9 +13,7 @@ Trajectory format (written by the solver, ``trajectory.nc``)
     attrs    chi, S, delta (meshed excess area), Re, N, L, dt, Lambda, mesh_family, mesh_level, backend, ...;
              complete = 1 when the run finished
 
-The spectra of a trajectory (Sec. V) are computed in :mod:`vesicle_core.analysis.spectra`; ``spectra_from_trajectory``
-is
-still importable from here.
+The spectra of a trajectory (Sec. V) are computed in :mod:`vesicle_core.analysis.spectra`.
 """
 
 from __future__ import annotations
@@ -45,7 +43,6 @@ __all__ = [
     "read_dataset",
     "validate_trajectory",
     "open_trajectory",
-    "spectra_from_trajectory",  # noqa: F822 (from spectra.py, through __getattr__ below)
 ]
 
 COMPRESS_MIN_SIZE = 10_000  # variables with more elements than this are written with zlib (complevel 4)
@@ -285,16 +282,3 @@ def open_trajectory(path, require_complete: bool = False) -> xr.Dataset:
         ds.close()
         raise
     return ds
-
-
-# --------------------------------------------------------------------------- moved to spectra.py
-_MOVED_TO_SPECTRA = ("spectra_from_trajectory", "DEFAULT_LMAX_CAP")
-
-
-def __getattr__(name):
-    # resolved on first use, not imported above: spectra.py builds on the I/O helpers of this module
-    if name in _MOVED_TO_SPECTRA:
-        from ..analysis import spectra
-
-        return getattr(spectra, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

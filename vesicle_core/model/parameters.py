@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import ConfigError, check_range
-from ..solver.kernels import DEFAULT_KERNEL, KERNELS
+from .resolution import DEFAULT_KERNEL, KERNELS
 
 
 @dataclass(frozen=True)

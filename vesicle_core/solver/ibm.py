@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, check_range
-from .kernels import DEFAULT_KERNEL, KERNELS
+from ..model.resolution import DEFAULT_KERNEL, KERNELS
 from .kernels import stencil as _kernel_stencil
 
 STENCIL_WIDTH = 4  # Peskin's 4-point kernel, eq. (27): the default

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..model.flow import background_velocity
-from .kernels import DEFAULT_KERNEL
+from ..model.resolution import DEFAULT_KERNEL
 
 
 class Integrator(abc.ABC):
@@ -109,11 +109,11 @@ def fastest_growth_rate(sigma_mean: float, l_max: int, h: float = 0.0,
                         kernel: str = DEFAULT_KERNEL, coupling: str = "kernel") -> tuple[float, int]:
     """Largest growth rate -(Gamma_l + A_l sigma) (eq. 11) over 2 <= l <= l_max [1/tau] and its l.
 
-    With h > 0 each rate is multiplied by the coupling's measured mode damping (kernels.mode_damping): the rate
+    With h > 0 each rate is multiplied by the coupling's measured mode damping (model.resolution.mode_damping): the rate
     the IBM can actually produce on that grid, not the continuum's.
     """
-    from ..analysis.theory import a_l, gamma_l
-    from .kernels import mode_damping
+    from ..model.modes import a_l, gamma_l
+    from ..model.resolution import mode_damping
 
     l = np.arange(2, max(int(l_max), 2) + 1)
     r = -(gamma_l(l) + a_l(l) * sigma_mean)

@@ -10,7 +10,7 @@ the same seed) for 3 <= l <= l_max to the shape, as a radial displacement about 
 
 The l = 2 part is left to the stretch: it is the flow's own deformation. ``scale`` multiplies the thermal energy
 k_B T (so the variance; amplitudes grow by sqrt(scale)). l_max is the PA's default truncation, capped at what the
-mesh resolves (``harmonics.resolvable_l_max``), since finer modes would alias into mesh noise.
+mesh resolves (``surface.resolvable_l_max``), since finer modes would alias into mesh noise.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def thermal_coefficients(delta, S, *, l_max, seed=0, scale=1.0, l_min=3):
     The PA's initial draw (``theory.initial_state`` at the same seed, with the default thermal spectrum), rescaled
     from u_lm to the unscaled c_lm of eq. (30), zero below l_min, amplitudes times sqrt(scale).
     """
-    from ..analysis.theory import initial_state
+    from ..model.modes import initial_state
 
     check_range("delta", delta, 0.0, None, lo_open=True)
     check_range("S", S, 0.0, None)
@@ -46,20 +46,21 @@ def thermal_coefficients(delta, S, *, l_max, seed=0, scale=1.0, l_min=3):
 
 def thermal_seed(vertices, faces, *, delta, S, seed=0, scale=1.0, l_max=None):
     """Vertices displaced radially by the PA's initial thermal spectrum (module docstring); returns (X, l_max)."""
-    from ..analysis import harmonics as H
-    from ..analysis.theory import default_l_max
+    from ..geometry import surface as Sf
+    from ..geometry import ylm as Yl
+    from ..model.modes import default_l_max
 
     X = np.asarray(vertices, dtype=float)
     f = np.asarray(faces)
-    l_res = H.resolvable_l_max(X, f)
+    l_res = Sf.resolvable_l_max(X, f)
     if l_max is None:
         l_max = min(default_l_max(float(S)), l_res)
     if l_max < 3:
         raise ConfigError(f"the mesh resolves l <= {l_res}; a thermal seed needs l_max >= 3")
     c = thermal_coefficients(delta, S, l_max=l_max, seed=seed, scale=scale)
-    center = H.volume_centroid(X, f)
+    center = Sf.volume_centroid(X, f)
     rel = X - center
     r = np.linalg.norm(rel, axis=1)
     theta = np.arccos(np.clip(rel[:, 2] / r, -1.0, 1.0))
     phi = np.arctan2(rel[:, 1], rel[:, 0])
-    return center + rel * (1.0 + H.synthesize(c, theta, phi))[:, None], int(l_max)
+    return center + rel * (1.0 + Yl.synthesize(c, theta, phi))[:, None], int(l_max)

@@ -31,8 +31,7 @@ NumericalInstability, a diagnostic file ``failure.nc`` and no complete-looking t
 Layout: the run configuration is in :mod:`vesicle_core.model.run_config`, the coupled operator (:class:`IBMSolver`) in
 :mod:`vesicle_core.solver.mobility`, the run directory's files (State, checkpoint, trajectory) in
 :mod:`vesicle_core.solver.trajectory`, the schemes in :mod:`vesicle_core.solver.integrators`. This module holds the step
-estimates and the driver :func:`run`, and re-exports the names it always had (``RunConfig``, ``IBMSolver``,
-``State``, ``TRAJECTORY``, ...).
+estimates and the driver :func:`run`.
 """
 
 from __future__ import annotations
@@ -48,16 +47,13 @@ import numpy as np
 
 from ..errors import NumericalInstability
 from ..geometry.mesh import vertices_for_edge
-from ..model.flow import background_velocity
 from ..model.parameters import CHECKPOINT_WALL_S
-from ..model.run_config import SCHEMES, RunConfig, default_lambda, load_config
+from ..model.run_config import RunConfig
 from . import membrane as B
 from .mobility import IBMSolver
 from .trajectory import (
     CHECKPOINT,
     FAILURE,
-    PARTIAL,
-    TRAJECTORY,
     State,
     TrajectoryWriter,
     load_checkpoint,
@@ -65,25 +61,7 @@ from .trajectory import (
     write_failure,
 )
 
-__all__ = [
-    "CHECKPOINT",
-    "FAILURE",
-    "PARTIAL",
-    "TRAJECTORY",
-    "SCHEMES",
-    "IBMSolver",
-    "RunConfig",
-    "State",
-    "TrajectoryWriter",
-    "background_velocity",
-    "default_lambda",
-    "formula_dt",
-    "load_checkpoint",
-    "load_config",
-    "power_dt",
-    "run",
-    "save_checkpoint",
-]
+__all__ = ["formula_dt", "power_dt", "run"]
 
 log = logging.getLogger("vesicle_core.solver.simulate")
 

@@ -40,7 +40,7 @@ def real_ylm(l_max, theta, phi):
     """Real orthonormal spherical harmonics at the points, (n, (l_max+1)^2), and the l of each column.
 
     Columns per l: m = 0, then (sqrt 2 Re Y_lm, sqrt 2 Im Y_lm) for m = 1..l (harmonics' normalisation)."""
-    from ..analysis.harmonics import _legendre_rows
+    from ..geometry.ylm import _legendre_rows
 
     th = np.asarray(theta, float).ravel()
     ph = np.asarray(phi, float).ravel()
@@ -58,9 +58,9 @@ def real_ylm(l_max, theta, phi):
 
 
 def default_l_max(X0, faces) -> int:
-    """Half the mesh's resolvable l (harmonics.resolvable_l_max: pi R / mean edge), the resolved_field default:
+    """Half the mesh's resolvable l (surface.resolvable_l_max: pi R / mean edge), the resolved_field default:
     four edges per wavelength. 642 vertices: 10; 2562: 20; 10242: 40."""
-    from ..analysis.harmonics import resolvable_l_max
+    from ..geometry.surface import resolvable_l_max
 
     return max(2, resolvable_l_max(X0, faces) // 2)
 
@@ -69,14 +69,15 @@ class HarmonicSpace:
     """The tension space: B (F, K), the l of each column, the mass G = B^T W B and its Cholesky factor."""
 
     def __init__(self, X0, faces, A0, l_max=None, check=True):
-        from ..analysis.harmonics import _angles, volume_centroid
+        from ..geometry.surface import volume_centroid
+        from ..geometry.ylm import _angles
 
         X0 = np.asarray(X0, dtype=float)
         faces = np.asarray(faces)
         self.l_max = default_l_max(X0, faces) if l_max is None else int(l_max)
         if self.l_max < 0:
             raise ConfigError(f"tension_l_max must be >= 0, got {self.l_max}")
-        from ..analysis.harmonics import resolvable_l_max
+        from ..geometry.surface import resolvable_l_max
 
         l_res = resolvable_l_max(X0, faces)
         if check and self.l_max > l_res:
@@ -259,7 +260,7 @@ class AreaALE:
         import scipy.sparse as sps
         import scipy.sparse.linalg as spla
 
-        from ..analysis.harmonics import vertex_normals
+        from ..geometry.surface import vertex_normals
         from .tension import face_D_matrix
 
         t0 = time.perf_counter()

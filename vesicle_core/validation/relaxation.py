@@ -29,7 +29,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import ConfigError, check_range
-from ..solver.kernels import DEFAULT_KERNEL
+from ..model.resolution import DEFAULT_KERNEL
 
 
 def clean_mobility(l):
@@ -40,7 +40,7 @@ def clean_mobility(l):
 
 def theory_rate(l, membrane="clean", sigma0=0.0):
     """Linear relaxation rate of mode l in 1/tau (see the module docstring)."""
-    from ..analysis.theory import a_l, gamma_l
+    from ..model.modes import a_l, gamma_l
 
     l = np.asarray(l, dtype=float)
     if membrane == "clean":

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
-from ..solver.kernels import DEFAULT_KERNEL
+from ..model.resolution import DEFAULT_KERNEL
 
 #: published values (Figs. 3, 4, 5; Sec. V.A)
 PAPER_L_STAR = {  # (Delta, S) -> (PA, IBM)
@@ -209,7 +209,7 @@ def _wall(attrs) -> dict:
 
 def pa_stretch_tension(S) -> float:
     """The PA's tension of the stationary stretched state, (S - Gamma_2) / A_2 (eq. 12 with u_{2,+-2} = 1)."""
-    from ..analysis.theory import a_l, gamma_l
+    from ..model.modes import a_l, gamma_l
 
     return float((S - gamma_l(2)) / a_l(2))
 
