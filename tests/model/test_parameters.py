@@ -76,7 +76,10 @@ def test_choices_match_the_code():
     from vesicle_core.solver.integrators import SCHEMES
     from vesicle_core.solver.seeding import SEED_SPECTRA
 
-    assert set(P.RUN["scheme"].choices) == set(SCHEMES)
+    # one list of schemes: the table's choices are the model's list, and the solver has one class per name, in order
+    assert P.RUN["scheme"].choices is P.SCHEMES
+    assert tuple(SCHEMES) == P.SCHEMES
+    assert all(cls.name == name for name, cls in SCHEMES.items())
     assert set(P.RUN["kernel"].choices) == set(KERNELS)
     assert set(P.RUN["area_model"].choices) == set(B.AREA_MODELS)
     assert set(P.RUN["seed_spectrum"].choices) == set(SEED_SPECTRA)

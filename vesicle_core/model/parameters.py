@@ -101,7 +101,9 @@ def _num(x) -> str:
     return f"{x:g}"
 
 
-_SCHEMES = ("explicit", "projection", "inextensible")
+#: the time integrators, in the order the docs list them: the one list of scheme names (RunConfig checks a run's
+#: scheme against it, solver/integrators.py registers one class per name and fails to import if they differ)
+SCHEMES = ("explicit", "projection", "inextensible")
 # A checkpoint is also written once this much wall time has passed since the last one, whatever checkpoint_every
 # says: an adaptive 256^3 run takes ~400 steps in ~1 h, so the step count alone would leave it without any
 # checkpoint, and a job killed without a signal (node failure, SIGKILL) would lose all of it. A 10242-vertex
@@ -192,7 +194,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "time integrator (integrators.py). explicit: the paper's area penalty alone; "
         "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
         "tension per triangle solved each step from the local area constraint, adaptive steps (docs/solver.md)",
-        choices=_SCHEMES,
+        choices=SCHEMES,
     ),
     Parameter(
         "projection_refresh",

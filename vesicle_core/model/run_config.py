@@ -87,8 +87,6 @@ def _run_config_class():
 RunConfig = _run_config_class()
 
 
-SCHEMES = ("explicit", "projection", "inextensible")
-
 
 def default_lambda(chi: float, scheme: str = "explicit") -> float:
     """Default tension modulus of (A5) [kappa/R^2].

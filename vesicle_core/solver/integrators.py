@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..model.flow import background_velocity
+from ..model.parameters import SCHEMES as SCHEME_NAMES
 from ..model.resolution import DEFAULT_KERNEL
 
 
@@ -261,4 +262,8 @@ class Inextensible(Integrator):
                 "cg_precond_shift": float(local.shift)}  # this call; the shift: the last build's (LocalPreconditioner)
 
 
-SCHEMES = {"explicit": Explicit, "projection": Projection, "inextensible": Inextensible}
+#: scheme name -> integrator class; the names are the model's (model.parameters.SCHEMES), each class carries its own
+SCHEMES = {cls.name: cls for cls in (Explicit, Projection, Inextensible)}
+# a scheme RunConfig accepts but no class runs (or the reverse) fails here, at import
+if tuple(SCHEMES) != SCHEME_NAMES:
+    raise RuntimeError(f"integrators {tuple(SCHEMES)} do not match the schemes of model.parameters {SCHEME_NAMES}")
