@@ -10,7 +10,7 @@ import pytest
 @pytest.fixture
 def fake_cupy(monkeypatch):
     """A stand-in ``cupy``/``cupyx`` pair that answers with NumPy: the only check the CuPy-only branches get without a
-    GPU (tests/test_gpu_path.py says which). It implements the CuPy API the package calls (``get_array_module``,
+    GPU (tests/solver/test_gpu_path.py says which). It implements the CuPy API the package calls (``get_array_module``,
     ``asarray``, ``asnumpy``, ``cuda.runtime.getDeviceCount``, ``fft``, ``cupyx.scatter_add``); everything else is
     NumPy's. Returns (cupy module, call counts of scatter_add, asnumpy and asarray)."""
 

@@ -12,7 +12,7 @@ u_1m ~ 0 when the centre is the volume centroid). With this normalisation a quas
 sum_{l>=2, m} |u_lm|^2 = 2 (Delta = sum_{l>=2} (l-1)(l+2)/2 sum_m |c_lm|^2 to second order in the shape
 perturbation; see :func:`excess_area`).
 
-Quadrature (documented choices; measured in tests/test_harmonics.py)
+Quadrature (documented choices; measured in tests/analysis/test_harmonics.py)
 --------------------------------------------------------------------
 * Centre X_C: the *volume* centroid of the enclosed solid (divergence theorem). It does not depend on how
   densely the membrane is meshed, and it makes the l = 1 coefficients vanish to first order.

@@ -23,7 +23,7 @@ state of the forward flow is then u_{2,2} = u_{2,-2} = +1 (the paper's "u_{2,+-2
 with sigma = (S - Gamma_2)/A_2. The alternative ``normalisation="unit"`` (sum |u|^2 = 1, u_{2,+-2} = 1/sqrt 2)
 is kept only to quantify the issue's remark: eqs. (11)-(12) are invariant under u -> alpha u, S -> alpha S, so
 "unit" is the "area" model at S_eff = sqrt(2) S with twice the relative thermal noise; it raises l_* (eq. 31) by
-10.5 % in all four published cases (tests/test_theory.py measures it).
+10.5 % in all four published cases (tests/analysis/test_theory.py measures it).
 
 Thermal initial spectrum
 ------------------------

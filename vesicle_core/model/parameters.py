@@ -3,7 +3,7 @@
 ``RunConfig`` (run_config.py) takes its fields and checks from :data:`RUN_PARAMETERS`; the workflow takes its
 defaults and its list of keys from here; the config schema's ``run``/``mesh`` sections and the parameter tables
 of config/README.md are generated from these tables (``python -m vesicle_core.model.parameters --write``), and
-tests/test_parameters.py fails when any of them drifts. ``vesicle params`` prints the tables with defaults.
+tests/model/test_parameters.py fails when any of them drifts. ``vesicle params`` prints the tables with defaults.
 Cross-parameter rules (N even, no inextensible scheme at Re > 0, ...) live in ``RunConfig.__post_init__``.
 """
 

@@ -25,7 +25,7 @@ applied to the real FFT of real white noise, so the half spectrum's Hermitian sy
 inverse FFT, the k = 0 mode is zero (no mean flow, as in the deterministic solve) and the 7 Nyquist-type modes
 get the identity projector, like the deterministic solve. Nothing here uses a staggered-grid stochastic stress:
 on this collocated grid |g_k|^2 != lam_k, and the divergence of a white stress would give the wrong covariance
-(``tests/test_fluctuations.py`` shows such a symbol failing the test). Cost: one 3-component FFT round trip and
+(``tests/solver/test_fluctuations.py`` shows such a symbol failing the test). Cost: one 3-component FFT round trip and
 3 N^3 normal deviates per step.
 
 Units: kT in kappa (the solver units, mu = 1, lengths in R, time in tau = mu R^3 / kappa), so kT = k_B T / kappa
