@@ -8,7 +8,9 @@ from vesicle_core.analysis.theory import run_theory
 from vesicle_core.data.datasets import spectra_from_trajectory
 from vesicle_core.geometry import mesh as M
 from vesicle_core.solver.simulate import RunConfig, run
-from vesicle_core.validation.report import box_comparison, collect, render, stage1_growth
+from vesicle_core.validation.box import box_comparison
+from vesicle_core.validation.report import render
+from vesicle_core.validation.study import collect, stage1_growth
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +84,7 @@ def test_ladder_findings_follow_the_numbers():
     far = render({}, _ladder(15.0, 40.0))
     assert "(more than 10% above it)" in far  # the extrapolated S = 2224 value now lies far above the paper's 28
     # an exact h^2 law extrapolates back to its limit
-    from vesicle_core.validation.report import ladder_summary
+    from vesicle_core.validation.study import ladder_summary
 
     s = ladder_summary(_ladder(15.0, 28.0)["rows"])
     assert abs(s[2224.0]["h2"]["value"] - 28.0) < 1e-9
@@ -100,7 +102,7 @@ def test_seed_and_variation_findings():
 
 # --------------------------------------------------------------------------- box: the tension and its image law
 def test_image_extrapolation_recovers_the_unbounded_value():
-    from vesicle_core.validation.report import image_extrapolation
+    from vesicle_core.validation.box import image_extrapolation
 
     def y(L):
         return 1300.0 + 2.5e4 / L**3
@@ -114,7 +116,7 @@ def test_pa_stretch_tension_mirrors_the_reversed_tension():
     """After the reversal the PA starts from the same shape with the flow reversed: sigma(0+) = -(S + Gamma_2)/A_2,
     so the stretch value (S - Gamma_2)/A_2 differs from -sigma(0+) by 2 Gamma_2 / A_2 (eq. 12)."""
     from vesicle_core.analysis.theory import a_l, gamma_l
-    from vesicle_core.validation.report import pa_stretch_tension
+    from vesicle_core.validation.study import pa_stretch_tension
 
     th = run_theory(0.116, 553.0, n_out=20, store_modes=False, kT_over_kappa=1e-12)  # no thermal share of u_22
     gap = 2 * float(gamma_l(2)) / float(a_l(2))
@@ -186,7 +188,8 @@ def test_exponent_finding_compares_with_the_grid_pa():
 
 
 def test_cost_names_resumed_runs_whose_earlier_calls_were_not_timed():
-    from vesicle_core.validation.report import _render_cost, _wall
+    from vesicle_core.validation.report import _render_cost
+    from vesicle_core.validation.study import _wall
 
     assert _wall({"wall_time_s": 90.0, "wall_time_s_last_call": 30.0, "resumed": 1}) == \
         {"wall_s": 90.0, "wall_partial": False}
@@ -202,7 +205,7 @@ def test_local_decay_brackets_the_fitted_exponent():
     """A least-squares slope over a window is a weighted mean of the local slopes in it, so the fitted stage-2
     exponent must lie between the local exponent's extremes over the same window."""
     from vesicle_core.analysis.fits import case_decay
-    from vesicle_core.validation.report import local_decay
+    from vesicle_core.validation.study import local_decay
 
     th = run_theory(0.116, 2224.0, store_modes=False)
     fit = case_decay(th, "theory")

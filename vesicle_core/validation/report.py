@@ -1,20 +1,9 @@
-"""Validation study (issue 6): the project's numbers next to the paper's and next to theory.
-
-``write_report(manifest, out_md)`` turns a manifest of produced files into ``docs/validation.md``:
-per-case l_* (simulation, this project's PA, the paper's PA and IBM values), the fitted exponents of
-l_* against S with intervals next to the paper's 0.3923 (IBM) and 0.372 (PA) and Turitsyn's 1/3,
-stage-2 tension decay exponents next to the paper's 0.74 and 0.81, area/volume drift, time step, steps
-and wall time per run, a resolution-convergence comparison, the periodic-box test (Table I) and the
-figures. Nothing here is tuned per case: every number is read from the files.
-
-Manifest (YAML/dict)::
-
-    title: str
-    resolution_note: str            # e.g. "N = 64, 2562-vertex quasi-uniform mesh"
-    cases:   [{case_id, group, trajectory, spectra, theory}]   # group: "fine" or "coarse"
-    fits:    {fine: fit.nc, coarse: fit.nc}
-    box:     {small: trajectory.nc, large: trajectory.nc}       # optional
-    figures: [{path, caption}]                                  # paths relative to the report
+"""Validation report (issue 6): ``write_report(manifest, out_md)`` turns a manifest of produced files into
+``docs/validation.md``: per-case l_* (simulation, this project's PA, the paper's PA and IBM values), the fitted
+exponents of l_* against S with intervals next to the paper's 0.3923 (IBM) and 0.372 (PA) and Turitsyn's 1/3,
+stage-2 tension decay exponents next to the paper's 0.74 and 0.81, area/volume drift, time step, steps and wall time
+per run, a resolution-convergence comparison, the periodic-box test (Table I) and the figures. The numbers are
+study.py's (and box.py's, Table I); this module writes them out. The manifest is described in study.py.
 """
 
 from __future__ import annotations
@@ -24,28 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
-from ..solver.kernels import DEFAULT_KERNEL
-
-#: published values (Figs. 3, 4, 5; Sec. V.A)
-PAPER_L_STAR = {  # (Delta, S) -> (PA, IBM)
-    (0.116, 553.0): (14, 15),
-    (0.116, 2224.0): (25, 28),
-    (0.997, 237.0): (10, 12),
-    (0.997, 947.0): (17, 24),
-}
-PAPER_EXPONENT_IBM = 0.3923
-PAPER_EXPONENT_PA = 0.372
-TURITSYN_EXPONENT = 1.0 / 3.0
-PAPER_DECAY = {553.0: 0.7439, 2224.0: 0.8108}
-PAPER_GRID = (512, 5.0)  # the paper's fluid grid: 512^3 nodes (Sec. V), box 2.5 diameters = 5 R (Table I)
-
-
-def _paper_lstar(delta, S):
-    for (d, s), v in PAPER_L_STAR.items():
-        if abs(d - delta) < 0.02 and abs(s - S) / s < 0.02:
-            return v
-    return None
+from .study import PAPER_EXPONENT_IBM, PAPER_EXPONENT_PA, PAPER_GRID, collect, ladder_summary, paper_grid_key
+from .study import fine_rows as _fine_rows
+from .study import fit_decay as _decay
+from .study import grid_key as _dkey
+from .study import ladder_rows as _ladder_rows
+from .study import pa_fit_decay as _pa_decay
+from .study import pa_fit_exponent as _pa_exponent
+from .study import paper_decay as _paper_decay
 
 
 def _fmt(x, nd=3):
@@ -69,363 +44,10 @@ def _verdict_words(v):
         v, "not comparable with")
 
 
-def stage1_growth(spectra, l_min=6) -> float:
-    """max over l >= l_min of log10(Delta_l(t_*) / Delta_l(0)): decades of growth during stage 1."""
-    D = spectra["Delta_l"]
-    ts = float(spectra["t_star"])
-    if not math.isfinite(ts):
-        return math.nan
-    d0 = D.sel(time=0.0, method="nearest").values[l_min:]
-    d1 = D.sel(time=ts, method="nearest").values[l_min:]
-    ok = (d0 > 0) & (d1 > 0)
-    return float(np.max(np.log10(d1[ok] / d0[ok]))) if ok.any() else math.nan
-
-
-def _positions(ds, i):
-    return np.stack([ds[c].values[i] for c in ("node_x", "node_y", "node_z")], axis=1)
-
-
-def _induced_velocity(ds, i):
-    """The stored membrane velocity of frame i less the background flow u_inf(X) = rate (x, -y, 0)."""
-    from ..model.flow import background_velocity
-
-    X = _positions(ds, i)
-    U = np.stack([ds[c].values[i] for c in ("node_ux", "node_uy", "node_uz")], axis=1)
-    rate = float(ds.attrs["chi"]) * float(ds["flow_sign"].values[i])
-    return U - background_velocity(X, rate)
-
-
-def box_tension(traj) -> float:
-    """The mean membrane tension at the flow reversal (the last stretch frame, time 0) [kappa/R^2]."""
-    t = traj["time"].values
-    return float(traj["tension"].values[int(np.argmin(np.abs(t)))])
-
-
-def image_extrapolation(L_small, y_small, L_large, y_large) -> float:
-    """y at L -> infinity from two boxes with y(L) = y_inf + c / L^3.
-
-    The periodic images of a force-free vesicle interact through its stresslet, whose image sum scales with the
-    volume fraction ~ 1/L^3 (the same law as the l = 2 relaxation rate's box correction in docs/solver.md).
-    """
-    a, b = L_small**-3, L_large**-3
-    if not abs(a - b) > 0:
-        return math.nan  # one box size: nothing to extrapolate from
-    return float((y_large * a - y_small * b) / (a - b))
-
-
-def box_comparison(traj_small, traj_large) -> dict:
-    """Table I: maximum relative difference of the membrane shape and velocity between two box sizes.
-
-    Frames are matched by time. The velocity is the stored one (``store_velocity``) less the background flow, i.e.
-    the induced velocity u_ind of Table I; runs without stored velocities fall back to centred differences of
-    consecutive frames (total velocity). Errors are max_k |a_k - b_k| / max_k |a_k| per frame, then the maximum
-    over frames (shape) and the median and maximum over frames (velocity, whose small-|u| frames inflate the
-    ratio, as the paper notes).
-    """
-    ta = traj_small["time"].values
-    tb = traj_large["time"].values
-    common = np.intersect1d(np.round(ta, 9), np.round(tb, 9))
-    if len(common) < 3:
-        raise ValueError("the two box runs share fewer than 3 output times: run both with the same output_every")
-    stored = all(v in ds for ds in (traj_small, traj_large) for v in ("node_ux", "node_uy", "node_uz"))
-
-    def index(ds, t):
-        return int(np.argmin(np.abs(ds["time"].values - t)))
-
-    shape_err, vel_err, times = [], [], []
-    shape_t = []
-    for k, t in enumerate(common):
-        ia, ib = index(traj_small, t), index(traj_large, t)
-        xa, xb = _positions(traj_small, ia), _positions(traj_large, ib)
-        shape_err.append(np.linalg.norm(xa - xb, axis=1).max() / np.linalg.norm(xa, axis=1).max())
-        shape_t.append(float(t))
-        if stored:
-            ua, ub = _induced_velocity(traj_small, ia), _induced_velocity(traj_large, ib)
-        elif 0 < k < len(common) - 1:
-            dt = common[k + 1] - common[k - 1]
-            ua = (_positions(traj_small, index(traj_small, common[k + 1]))
-                  - _positions(traj_small, index(traj_small, common[k - 1]))) / dt
-            ub = (_positions(traj_large, index(traj_large, common[k + 1]))
-                  - _positions(traj_large, index(traj_large, common[k - 1]))) / dt
-        else:
-            continue
-        vel_err.append(np.linalg.norm(ua - ub, axis=1).max() / max(np.linalg.norm(ua, axis=1).max(), 1e-300))
-        times.append(float(t))
-    s_small, s_large = box_tension(traj_small), box_tension(traj_large)
-    L_s, L_l = float(traj_small.attrs.get("L", math.nan)), float(traj_large.attrs.get("L", math.nan))
-    return {"L_small": L_s, "L_large": L_l,
-            "tension_small": s_small, "tension_large": s_large,
-            "tension_unbounded": image_extrapolation(L_s, s_small, L_l, s_large),
-            "N_small": int(traj_small.attrs.get("N", -1)), "N_large": int(traj_large.attrs.get("N", -1)),
-            "max_shape_error": float(np.max(shape_err)), "max_velocity_error": float(np.max(vel_err)),
-            "median_velocity_error": float(np.median(vel_err)), "frames": int(len(common)),
-            "velocity": "stored, induced part" if stored else "frame differences, total",
-            "final_shape_error": float(shape_err[-1]),
-            "t_max_shape_error": shape_t[int(np.argmax(shape_err))], "reversal_shape_error":
-                float(shape_err[int(np.argmin(np.abs(np.array(shape_t))))])}
-
-
-def _run_row(case, traj, spec, theo):
-    from ..data.catalog import parse_case_id
-
-    delta_nominal = float(theo.attrs.get("delta", traj.attrs.get("delta")))
-    S = float(theo.attrs.get("S", traj.attrs.get("S")))
-    paper = _paper_lstar(delta_nominal, S)
-    N = int(traj.attrs.get("N", -1))
-    L = float(traj.attrs.get("L", math.nan))
-    return {
-        "case_id": case["case_id"], "group": case.get("group", "fine"), "delta": delta_nominal,
-        "tag": (parse_case_id(case["case_id"]) or {}).get("tag"),
-        "delta_mesh": float(traj.attrs.get("delta", math.nan)), "S": S, "chi": float(traj.attrs.get("chi", math.nan)),
-        "N": N, "L": L, "h": L / N if N > 0 else math.nan, "vertices": int(traj.sizes["n_node"]),
-        "family": str(traj.attrs.get("mesh_family", "?")), "kernel": str(traj.attrs.get("kernel", DEFAULT_KERNEL)),
-        "seed_spectrum": str(traj.attrs.get("seed_spectrum", "mesh")),
-        "seed_scale": float(traj.attrs.get("seed_scale", 1.0)),
-        "sim_l_star": float(spec["l_star"]), "sim_l_peak": float(spec.get("l_peak", math.nan)),
-        "pa_l_star": float(theo["l_star"]), "pa_l_peak": float(theo.get("l_peak", math.nan)),
-        "paper_pa": paper[0] if paper else None, "paper_ibm": paper[1] if paper else None,
-        "sim_t_star": float(spec["t_star"]), "pa_t_star": float(theo["t_star"]),
-        "growth_decades": stage1_growth(spec),
-        "max_area_drift": float(np.abs(traj["area_drift"].values).max()),
-        "max_volume_drift": float(np.abs(traj["volume_drift"].values).max()),
-        "dt_gamma": float(traj.attrs.get("dt_gamma", math.nan)), "steps": int(traj.attrs.get("steps", -1)),
-        **_wall(traj.attrs),
-        "scheme": str(traj.attrs.get("scheme", "?")),
-        "defect_ratio": float(spec.get("defect_amplitude_ratio", math.nan)),
-        "sim_tension_reversal": box_tension(traj) if "tension" in traj else math.nan,
-        "pa_stretch_tension": pa_stretch_tension(S),
-    }
-
-
-def _wall(attrs) -> dict:
-    """The run's wall time over all its calls; a run resumed from a checkpoint that predates that record counts
-    its last call only (``wall_partial``)."""
-    total = float(attrs.get("wall_time_s", math.nan))
-    if math.isfinite(total):
-        return {"wall_s": total, "wall_partial": False}
-    return {"wall_s": float(attrs.get("wall_time_s_last_call", math.nan)),
-            "wall_partial": bool(int(attrs.get("resumed", 0)))}
-
-
-def pa_stretch_tension(S) -> float:
-    """The PA's tension of the stationary stretched state, (S - Gamma_2) / A_2 (eq. 12 with u_{2,+-2} = 1)."""
-    from ..analysis.theory import a_l, gamma_l
-
-    return float((S - gamma_l(2)) / a_l(2))
-
-
-def collect(manifest) -> dict:
-    import xarray as xr
-
-    rows = []
-    pa_local = {}  # ("PA", S) -> local_decay of the PA
-    for case in manifest["cases"]:
-        with xr.open_dataset(case["trajectory"]) as traj, xr.open_dataset(case["spectra"]) as spec, \
-                xr.open_dataset(case["theory"]) as theo:
-            rows.append(_run_row(case, traj.load(), spec.load(), theo.load()))
-            r = rows[-1]
-            if _paper_decay(r["S"]) is not None and r["delta"] < 0.5:
-                if ("PA", r["S"]) not in pa_local:
-                    pa_local[("PA", r["S"])] = local_decay(theo, "theory", _paper_decay(r["S"]))
-                r["local_decay"] = local_decay(spec, "simulation", _paper_decay(r["S"]))
-    fits = {}
-    for group, path in (manifest.get("fits") or {}).items():
-        with xr.open_dataset(path) as f:
-            fits[group] = f.load()
-    box = None
-    if manifest.get("box"):
-        with xr.open_dataset(manifest["box"]["small"]) as a, xr.open_dataset(manifest["box"]["large"]) as b:
-            box = box_comparison(a.load(), b.load())
-        small = [r for r in rows if r["group"] == "box" and abs(r["L"] - box["L_small"]) < 1e-9]
-        box["tension_pa"] = small[0]["pa_stretch_tension"] if small else math.nan
-    data = {"rows": rows, "fits": fits, "box": box, "relaxation": None, "cutoff": None, "pa_local_decay": pa_local}
-    ladder = _ladder_rows(rows)
-    if ladder and manifest.get("relaxation", True):
-        data["relaxation"] = relaxation_table(sorted({(r["N"], r["vertices"], r["L"]) for r in ladder}))
-    if manifest.get("cutoff", True) and fits.get("fine") is not None:
-        data["cutoff"] = cutoff_table(fits["fine"])
-    if ladder and manifest.get("damped_pa", True):
-        data["damped_pa"] = damped_pa_table([r for r in rows if r["group"] in ("ladder", "fine", "seed",
-                                                                               "variation")])
-        N, L = PAPER_GRID
-        paper_grid = [{**r, "N": N, "h": L / N, "kernel": DEFAULT_KERNEL} for r in rows if r["group"] == "fine"]
-        data["damped_pa"].update(damped_pa_table(paper_grid))
-    return data
-
-
-def _paper_decay(S):
-    return next((v for k, v in PAPER_DECAY.items() if abs(k - S) / k < 0.02), None)
-
-
-def local_decay(ds, kind="theory", paper=None) -> dict:
-    """How far a stage-2 tension is from one power law: the local exponent a(t) = -d ln|sigma|/d ln t
-    (fits.local_decay_exponent) on the dataset's own samples (raw, as the fit uses them), inside the stage-2
-    window that the fitted exponent uses (the rule and tolerances of fits.case_decay for ``kind`` 'theory' or
-    'simulation'), and from the end of stage 1 to that window's end. ``paper``: the gamma_dot t at which a(t)
-    first equals it there (None if it never does). {} when there is no clean stage 2."""
-    from ..analysis.fits import detect_tension_stages, local_decay_exponent
-
-    t = np.asarray(ds["time"].values, dtype=float)
-    sig = np.asarray(ds["sigma"].values, dtype=float)
-    keep = t > 0
-    t, sig = t[keep], sig[keep]
-    try:
-        st = detect_tension_stages(t, sig, smooth=1 if kind == "theory" else 3,
-                                   rms_tol=0.01 if kind == "theory" else 0.05)
-    except Exception:  # no clean stage 2: nothing to say
-        return {}
-    lo, hi = st.i_stage2
-    i1 = min(int(np.searchsorted(t, st.t_stage1_end)), lo)
-    a = local_decay_exponent(t[i1:hi], sig[i1:hi])
-    w = a[lo - i1:]
-    out = {"t_stage1_end": float(st.t_stage1_end), "t_start": float(t[lo]), "t_end": float(t[hi - 1]),
-           "a_min": float(w.min()), "a_max": float(w.max()), "a_min_from_stage1": float(a.min()), "paper": paper,
-           "t_paper": None}
-    if paper is not None:
-        cross = np.nonzero((a[:-1] - paper) * (a[1:] - paper) <= 0)[0]
-        if cross.size:
-            k = int(cross[0])
-            f = (paper - a[k]) / (a[k + 1] - a[k]) if a[k + 1] != a[k] else 0.0
-            out["t_paper"] = float(t[i1 + k] + f * (t[i1 + k + 1] - t[i1 + k]))
-    return out
-
-
-# --------------------------------------------------------------------------- computed side studies
-RELAXATION_L = (2, 3, 4, 6, 8, 10, 13, 16, 20, 25, 30)
-CUTOFF_L_MAX = (16, 20, 24, 28, 32, 36, 40, 48, 64, None)
-
-
-def damped_pa_table(rows) -> dict:
-    """The PA as each run's grid carries it (theory.grid_damping): {(S, N, kernel): {l_star, l_peak, t_star,
-    decay}} for the quasi-spherical runs at L = 5 R. The damping comes from single-mode relaxation, not from
-    wrinkling runs."""
-    from ..analysis.fits import case_decay
-    from ..analysis.theory import run_theory
-
-    out = {}
-    for r in rows:
-        key = (r["S"], r["N"], r["kernel"])
-        if r["delta"] >= 0.5 or key in out or abs(r["L"] - 5.0) > 1e-9:
-            continue
-        th = run_theory(r["delta"], r["S"], grid_h=r["h"], kernel=r["kernel"], store_modes=False)
-        try:
-            decay = case_decay(th, "theory").exponent
-        except (ValueError, ConfigError):
-            decay = math.nan
-        out[key] = {"l_star": float(th.l_star), "l_peak": float(th.l_peak), "t_star": float(th.t_star),
-                    "decay": decay, "local_decay": local_decay(th, "theory", _paper_decay(r["S"]))}
-    return out
-
-
-def relaxation_table(grids, ls=RELAXATION_L, tol=0.05) -> list[dict]:
-    """IBM/theory relaxation-rate ratios of single modes (relaxation.py, clean interface, no box correction)
-    on each ladder grid (N, vertices, L) -> rows {N, vertices, ratios, l_res}."""
-    from .relaxation import l_res, mode_rate
-
-    out = []
-    for N, nv, L in grids:
-        ratios = {l: mode_rate(l, N, nv, L=L).ratio for l in ls}
-        # l = 2 is the one mode the periodic images slow (~5% at L = 5 R): l_res counts from l = 3
-        out.append({"N": N, "vertices": nv, "L": L, "ratios": ratios,
-                    "l_res": l_res({l: r for l, r in ratios.items() if l >= 3}, tol)})
-    return out
-
-
-def cutoff_table(fit, l_max_values=CUTOFF_L_MAX) -> dict | None:
-    """The PA exponent b against the mode cutoff l_max (cutoff.py) over the S values of the report's PA fit."""
-    from .cutoff import DEFAULT_LMAX_LABEL, exponent_vs_lmax
-
-    kind = np.asarray(fit["kind"].values).astype(str)
-    S = np.asarray(fit["S"].values, dtype=float)[kind == "theory"]
-    delta = np.asarray(fit["delta"].values, dtype=float)[kind == "theory"]
-    sel = np.abs(delta - 0.116) < 1e-6
-    S = np.unique(S[sel])
-    if len(S) < 3:
-        return None
-    ds = exponent_vs_lmax(0.116, list(S), list(l_max_values))
-    rows = []
-    for L in ds["l_max"].values:
-        d = ds.sel(l_max=L)
-        active = [float(s) for s, t in zip(ds["S"].values, d["truncated"].values, strict=True) if t]
-        rows.append({"l_max": "default" if int(L) == DEFAULT_LMAX_LABEL else int(L), "b": float(d["b"]),
-                     "low": float(d["b_low"]), "high": float(d["b_high"]),
-                     "active_from": min(active) if active else None})
-    return {"S": [float(x) for x in S], "rows": rows}
-
-
-# --------------------------------------------------------------------------- tables
-def _group_label(g):
-    kind = str(g.group_kind.values)
-    text = f"{kind}, Delta {float(g.group_delta):.3g}, {int(g.n_cases)} cases"
-    if kind == "simulation" and "group_N" in g:
-        text += f", N = {int(g.group_N)}, {int(g.group_vertices)} vertices"
-    return text
-
-
 def _table(header, rows):
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     out += ["| " + " | ".join(_fmt(c) if not isinstance(c, str) else c for c in r) + " |" for r in rows]
     return "\n".join(out)
-
-
-def _ladder_rows(rows):
-    return [r for r in rows if r["group"] in ("ladder", "fine") and r["tag"] and "ladder" in str(r["tag"])]
-
-
-def _fine_rows(rows):
-    return [r for r in rows if r["group"] == "fine"]
-
-
-def _decay(f, case_id):
-    if f is None or "case_id" not in f:
-        return None
-    ids = np.asarray(f["case_id"].values).astype(str)
-    hit = np.nonzero(ids == case_id)[0]
-    if not len(hit):
-        return None
-    c = f.isel(case=int(hit[0]))
-    return float(c.decay_exponent), float(c.decay_ci_low), float(c.decay_ci_high)
-
-
-def _pa_decay(f, delta, S):
-    if f is None:
-        return None
-    for i in range(f.sizes["case"]):
-        c = f.isel(case=i)
-        if str(c.kind.values) == "theory" and abs(float(c.delta) - delta) < 1e-6 and abs(float(c.S) - S) < 1e-6:
-            return float(c.decay_exponent)
-    return None
-
-
-def _pa_exponent(f, delta):
-    for i in range(f.sizes["group"]):
-        g = f.isel(group=i)
-        if str(g.group_kind.values) == "theory" and abs(float(g.group_delta) - delta) < 1e-6:
-            return float(g.l_star_exponent), float(g.l_star_ci_low), float(g.l_star_ci_high)
-    return math.nan, math.nan, math.nan
-
-
-def ladder_summary(rows) -> dict:
-    """Per S of the quasi-spherical ladder: the rungs (sorted by h), the extrapolations (h^2 primary, h beside it)
-    and the comparison with the paper's IBM l_* (within 10% or not; rule fixed in convergence.py)."""
-    from .convergence import extrapolate, verdict
-
-    out = {}
-    ladder = [r for r in _ladder_rows(rows) if r["delta"] < 0.5]
-    for S in sorted({r["S"] for r in ladder}):
-        rungs = sorted((r for r in ladder if r["S"] == S), key=lambda r: -r["h"])
-        if len(rungs) < 2:
-            continue
-        h = [r["h"] for r in rungs]
-        y = [r["sim_l_star"] for r in rungs]
-        e2, e1 = extrapolate(h, y, order=2), extrapolate(h, y, order=1)
-        paper = rungs[-1]["paper_ibm"]
-        out[S] = {"rungs": rungs, "h2": e2, "h1": e1, "paper_ibm": paper, "pa": rungs[-1]["pa_l_star"],
-                  "finest_verdict": verdict(y[-1], paper) if paper else "n/a",
-                  "extrapolated_verdict": verdict(e2["value"], paper, low=e2["low"], high=e2["high"])
-                  if paper else "n/a",
-                  "increments": [b - a for a, b in zip(y, y[1:], strict=False)]}
-    return out
 
 
 def _fig_lstar_vs_h(summary, path):
@@ -584,7 +206,7 @@ def _render_exponents(fine, summary, f, fit_power_law, dpa=None):
             rows.append([f"PA on the finest rung's grid (N = {qs[0]['N']}), same {n} S", own.exponent, own.ci_low,
                          own.ci_high])
         N_p = PAPER_GRID[0]
-        paper, n = grid_fit(lambda r: (r["S"], N_p, DEFAULT_KERNEL))
+        paper, n = grid_fit(paper_grid_key)
         if paper:
             rows.append([f"PA on the paper's grid (N = {N_p}, L = {PAPER_GRID[1]:g} R, 4-point kernel), same {n} S",
                          paper.exponent, paper.ci_low, paper.ci_high])
@@ -618,10 +240,6 @@ def _render_exponents(fine, summary, f, fit_power_law, dpa=None):
                      + f" the paper's IBM {PAPER_EXPONENT_IBM}")
         md += [text + ".", ""]
     return md
-
-
-def _dkey(r):
-    return (r["S"], r["N"], r["kernel"])
 
 
 def _damped_pa_finding(S, s, dpa):
