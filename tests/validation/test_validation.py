@@ -1,6 +1,8 @@
 """Validation helpers: the periodic-box comparison (Table I), the study's numbers and the report's findings (rendered
 through the templates, so every finding is checked as the report prints it)."""
 
+import sys
+
 import numpy as np
 import pytest
 import xarray as xr
@@ -238,3 +240,15 @@ def test_a_value_the_templates_name_and_the_data_lack_fails_loudly():
     with pytest.raises(jinja2.UndefinedError):  # the context lacks the large box's tension and the rest
         _environment().get_template("box_tension.md.j2").render(box_tension={"b": b, "small": 1544.0})
 
+
+def test_the_report_without_jinja2_names_the_extra(monkeypatch):
+    from vesicle_core.errors import MissingDependency
+    from vesicle_core.validation.report import _environment
+
+    _environment.cache_clear()
+    monkeypatch.setitem(sys.modules, "jinja2", None)  # import jinja2 now raises ImportError
+    try:
+        with pytest.raises(MissingDependency, match=r"\[workflow\]"):
+            render_section("cost", [])
+    finally:
+        _environment.cache_clear()
