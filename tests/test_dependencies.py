@@ -12,7 +12,7 @@ from vesicle_core.errors import MissingDependency, VesicleError, require
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the packages of the extras (workflow, viz, fast, gpu, esm), blocked in the subprocess below
-OPTIONAL = ("snakemake", "jsonschema", "pyarrow", "matplotlib", "pyvista", "vtk", "numba", "pyfftw", "cupy",
+OPTIONAL = ("snakemake", "jsonschema", "jinja2", "pyarrow", "matplotlib", "pyvista", "vtk", "numba", "pyfftw", "cupy",
             "intake", "intake_esm")
 
 CORE_ONLY = textwrap.dedent(f"""

@@ -1,4 +1,7 @@
-"""Validation helpers: the periodic-box comparison (Table I) and the report builder."""
+"""Validation helpers: the periodic-box comparison (Table I), the study's numbers and the report's findings (rendered
+through the templates, so every finding is checked as the report prints it)."""
+
+import sys
 
 import numpy as np
 import pytest
@@ -9,7 +12,9 @@ from vesicle_core.analysis.theory import run_theory
 from vesicle_core.geometry import mesh as M
 from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.simulate import run
-from vesicle_core.validation.report import box_comparison, collect, render, stage1_growth
+from vesicle_core.validation.box import box_comparison
+from vesicle_core.validation.report import render, render_section
+from vesicle_core.validation.study import collect, stage1_growth
 
 
 @pytest.fixture(scope="module")
@@ -83,7 +88,7 @@ def test_ladder_findings_follow_the_numbers():
     far = render({}, _ladder(15.0, 40.0))
     assert "(more than 10% above it)" in far  # the extrapolated S = 2224 value now lies far above the paper's 28
     # an exact h^2 law extrapolates back to its limit
-    from vesicle_core.validation.report import ladder_summary
+    from vesicle_core.validation.study import ladder_summary
 
     s = ladder_summary(_ladder(15.0, 28.0)["rows"])
     assert abs(s[2224.0]["h2"]["value"] - 28.0) < 1e-9
@@ -101,7 +106,7 @@ def test_seed_and_variation_findings():
 
 # --------------------------------------------------------------------------- box: the tension and its image law
 def test_image_extrapolation_recovers_the_unbounded_value():
-    from vesicle_core.validation.report import image_extrapolation
+    from vesicle_core.validation.box import image_extrapolation
 
     def y(L):
         return 1300.0 + 2.5e4 / L**3
@@ -115,7 +120,7 @@ def test_pa_stretch_tension_mirrors_the_reversed_tension():
     """After the reversal the PA starts from the same shape with the flow reversed: sigma(0+) = -(S + Gamma_2)/A_2,
     so the stretch value (S - Gamma_2)/A_2 differs from -sigma(0+) by 2 Gamma_2 / A_2 (eq. 12)."""
     from vesicle_core.model.modes import a_l, gamma_l
-    from vesicle_core.validation.report import pa_stretch_tension
+    from vesicle_core.validation.study import pa_stretch_tension
 
     th = run_theory(0.116, 553.0, n_out=20, store_modes=False, kT_over_kappa=1e-12)  # no thermal share of u_22
     gap = 2 * float(gamma_l(2)) / float(a_l(2))
@@ -123,87 +128,77 @@ def test_pa_stretch_tension_mirrors_the_reversed_tension():
 
 
 def test_box_tension_finding_follows_the_numbers():
-    from vesicle_core.validation.report import _render_box_tension
-
     b = {"L_small": 5.0, "L_large": 7.0, "tension_small": 1544.0, "tension_large": 1416.0,
          "tension_unbounded": 1344.0, "tension_pa": 1261.0}
-    text = " ".join(_render_box_tension(b))
+    text = render_section("box_tension", b)
     assert "-8.3%" in text and "larger box is closer" in text
     b.update(tension_large=1600.0)
-    assert "is not closer" in " ".join(_render_box_tension(b))
+    assert "is not closer" in render_section("box_tension", b)
 
 
 def test_cost_finding_follows_the_numbers():
-    from vesicle_core.validation.report import _render_cost
-
     rows = [_row(553, 64, 6.0, wall_s=20.0), _row(553, 256, 15.0, wall_s=3000.0), _row(2224, 256, 25.0, wall_s=3000.0)]
-    text = " ".join(_render_cost(rows))
+    text = render_section("cost", rows)
     assert "1.67 h" in text and "about 0.8 h" in text and "within a 3 h" in text and "N = 256 costs" in text
     rows += [_row(227, 256, 12.0, wall_s=9000.0), _row(4448, 256, 35.0, wall_s=9000.0)]
-    assert "above a 3 h" in " ".join(_render_cost(rows))
+    assert "above a 3 h" in render_section("cost", rows)
 
 
 def test_grid_pa_findings_follow_the_numbers():
-    from vesicle_core.validation.report import _damped_decay_finding, _damped_pa_finding
-
     s = {"rungs": [_row(2224, 128, 16.0), _row(2224, 256, 25.0)], "pa": 22.6}
     dpa = {(2224, 128, "peskin4"): {"l_star": 14.4}, (2224, 256, "peskin4"): {"l_star": 19.9}}
-    text = " ".join(_damped_pa_finding(2224, s, dpa))
+    text = render_section("damped_pa", s, dpa)
     assert "1.11 (N = 128), 1.26 (N = 256)" in text and "both rise" in text
     dpa[(2224, 256, "peskin4")]["l_star"] = 14.0
-    assert "do not both rise" in " ".join(_damped_pa_finding(2224, s, dpa))
-    # rows: S, N, a, low, high, grid PA a, PA a, paper
-    rows = [[2224, 128, 2.67, 2.5, 2.8, 2.51, 0.92, 0.81], [2224, 256, 1.47, 1.3, 1.6, 1.25, 0.92, 0.81]]
-    text = " ".join(_damped_decay_finding(rows))
+    assert "do not both rise" in render_section("damped_pa", s, dpa)
+    keys = ("S", "N", "a", "low", "high", "grid", "pa", "paper")  # grid: the PA on the rung's grid
+    rows = [dict(zip(keys, r, strict=True)) for r in ([2224, 128, 2.67, 2.5, 2.8, 2.51, 0.92, 0.81],
+                                                       [2224, 256, 1.47, 1.3, 1.6, 1.25, 0.92, 0.81])]
+    text = render_section("damped_decay", rows)
     assert "+0.16 (N = 128), +0.22 (N = 256)" in text and "inside the IBM interval at 1 of 2" in text
     assert "both fall" in text
-    rows[1][5] = 2.9
-    assert "do not fall together" in " ".join(_damped_decay_finding(rows))
+    rows[1]["grid"] = 2.9
+    assert "do not fall together" in render_section("damped_decay", rows)
 
 
 def test_seed_closure_with_the_grid_pa_follows_the_numbers():
-    from vesicle_core.validation.report import _render_seeds
-
     rows = [_row(553, 128, 13.9, group="ladder"),
             _row(553, 128, 11.4, group="seed", tag="seed-thermal", seed_spectrum="thermal", seed_scale=1.0)]
     dpa = {(553, 128, "peskin4"): {"l_star": 10.5, "t_star": 0.24}}
-    text = " ".join(_render_seeds(rows, dpa))
+    text = render_section("seeds", rows, dpa)
     # 11.4 / 10.5 - 1, 11.4 / 12.4 - 1 (the row's continuum PA), 13.9 / 10.5 - 1
     assert "+8.6% (S = 553, N = 128)" in text and "continuum PA by -8.1%" in text and "by +32.4%" in text
 
 
 def test_exponent_finding_compares_with_the_grid_pa():
-    from vesicle_core.analysis.fits import fit_power_law
-    from vesicle_core.validation.report import _render_exponents
-
     Ss = (227.0, 553.0, 1106.5, 2224.0, 4448.0)
     fine = [_row(S, 256, 6.0 * S**0.33, group="fine") for S in Ss]
     dpa = {(S, 256, "peskin4"): {"l_star": 6.0 * S**0.34} for S in Ss}
     dpa.update({(S, 512, "peskin4"): {"l_star": 3.0 * S**0.45} for S in Ss})
-    text = " ".join(_render_exponents(fine, {}, None, fit_power_law, dpa))
+    text = render_section("exponents", fine, {}, None, dpa)
     assert "b = 0.330" in text and "outside this interval" in text  # exact power law: a zero-width interval
     assert "The PA on the same grid gives 0.340, outside" in text and "paper's grid it gives 0.450" in text
     assert "does not contain the paper's IBM" in text
 
 
 def test_cost_names_resumed_runs_whose_earlier_calls_were_not_timed():
-    from vesicle_core.validation.report import _render_cost, _wall
+    from vesicle_core.validation.study import _wall
 
     assert _wall({"wall_time_s": 90.0, "wall_time_s_last_call": 30.0, "resumed": 1}) == \
         {"wall_s": 90.0, "wall_partial": False}
     old = _wall({"wall_time_s_last_call": 30.0, "resumed": 1})
     assert old == {"wall_s": 30.0, "wall_partial": True}
     rows = [_row(553, 256, 15.0, **old), _row(2224, 256, 25.0, wall_s=60.0)]
-    text = " ".join(_render_cost(rows))
+    text = render_section("cost", rows)
     assert "D0.116_S553_N256_ladder" in text and "at least" in text and "whether it fits is open" in text
-    assert "Resumed runs" not in " ".join(_render_cost(rows[1:]))
+    assert "Resumed runs" not in render_section("cost", rows[1:])
 
 
 def test_local_decay_brackets_the_fitted_exponent():
     """A least-squares slope over a window is a weighted mean of the local slopes in it, so the fitted stage-2
     exponent must lie between the local exponent's extremes over the same window."""
     from vesicle_core.analysis.fits import case_decay
-    from vesicle_core.validation.report import local_decay
+    from vesicle_core.validation.study import local_decay
 
     th = run_theory(0.116, 2224.0, store_modes=False)
     fit = case_decay(th, "theory")
@@ -215,23 +210,46 @@ def test_local_decay_brackets_the_fitted_exponent():
 
 
 def test_local_decay_finding_follows_the_numbers():
-    from vesicle_core.validation.report import _render_local_decay
-
     base = {"t_stage1_end": 0.02, "t_start": 0.05, "t_end": 0.17, "a_min_from_stage1": 0.2, "paper": 0.81}
     pa = {**base, "a_min": 0.86, "a_max": 1.21, "t_paper": 0.03}
     run = {**base, "a_min": 1.0, "a_max": 1.05, "t_paper": None}
     summary = {2224.0: {"rungs": [{"N": 128, "local_decay": {}}, {"N": 256, "local_decay": run}]}}
-    md = "\n".join(_render_local_decay({("PA", 2224.0): pa}, summary))
+    md = render_section("local_decay", {("PA", 2224.0): pa}, summary)
     assert "this PA: the local exponent varies by a factor 1.41" in md and "0.030, before the window" in md
     assert "IBM, N = 256: the local exponent is constant within 10%" in md and "never equals" in md
-    assert _render_local_decay({}, {}) == []
+    assert render_section("local_decay", {}, {}) == ""
 
 
 def test_local_decay_clause_follows_the_numbers():
-    from vesicle_core.validation.report import _local_decay_clause
+    def clause(v):
+        return render_section("local_decay_clause", v)
 
     v = {"a_min": 0.86, "a_max": 1.21, "t_paper": 0.03}
-    assert "factor 1.41" in _local_decay_clause(v) and "0.030" in _local_decay_clause(v)
-    assert "does not matter" in _local_decay_clause({**v, "a_max": 0.9})
-    assert "passes" not in _local_decay_clause({**v, "t_paper": None})
-    assert _local_decay_clause({}) == "" and _local_decay_clause(None) == ""
+    assert "factor 1.41" in clause(v) and "0.030" in clause(v)
+    assert "does not matter" in clause({**v, "a_max": 0.9})
+    assert "passes" not in clause({**v, "t_paper": None})
+    assert clause({}) == "" and clause(None) == ""
+
+
+def test_a_value_the_templates_name_and_the_data_lack_fails_loudly():
+    """StrictUndefined: a missing number raises instead of printing an empty cell."""
+    import jinja2
+
+    from vesicle_core.validation.report import _environment
+
+    b = {"L_small": 5.0, "L_large": 7.0}
+    with pytest.raises(jinja2.UndefinedError):  # the context lacks the large box's tension and the rest
+        _environment().get_template("box_tension.md.j2").render(box_tension={"b": b, "small": 1544.0})
+
+
+def test_the_report_without_jinja2_names_the_extra(monkeypatch):
+    from vesicle_core.errors import MissingDependency
+    from vesicle_core.validation.report import _environment
+
+    _environment.cache_clear()
+    monkeypatch.setitem(sys.modules, "jinja2", None)  # import jinja2 now raises ImportError
+    try:
+        with pytest.raises(MissingDependency, match=r"\[workflow\]"):
+            render_section("cost", [])
+    finally:
+        _environment.cache_clear()
