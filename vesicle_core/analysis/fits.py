@@ -262,14 +262,8 @@ def _window_search(x, y, min_points, rms_tol):
     return int(bi), int(bj), float(rms[bi, bj])
 
 
-def detect_tension_stages(time, sigma, *, t0: float = 0.0, plateau_drop: float = 0.02, rms_tol: float = 0.01,
-                          min_points: int = 5, max_search: int = 600, smooth: int = 1) -> TensionStages:
-    """Find the three stages of a tension history sigma(t) (rule in the module docstring).
-
-    time: strictly increasing sample times; sigma: tension at those times (any unit); t0: time of the flow
-    reversal (the power law is in t - t0). Raises ConfigError if the tension is never negative, never leaves
-    its plateau, or no stage-2 window of ``min_points`` samples is straight within ``rms_tol``.
-    """
+def _stage_samples(time, sigma, t0, plateau_drop, rms_tol, min_points, max_search, smooth):
+    """time and sigma as float arrays after checking them and the rule's parameters (ConfigError otherwise)."""
     t = _as_1d("time", time)
     s = _as_1d("sigma", sigma)
     if t.shape != s.shape:
@@ -285,16 +279,16 @@ def detect_tension_stages(time, sigma, *, t0: float = 0.0, plateau_drop: float =
         raise ConfigError("time and sigma must be finite")
     if np.any(np.diff(t) <= 0):
         raise ConfigError("time must be strictly increasing")
-    after = t > t0
-    if not after.any():
+    if not (t > t0).any():
         raise ConfigError(f"no samples after the reversal time t0 = {t0}")
-    if smooth > 1:  # running median: locates the plateau and its exit in noisy data (the fit uses raw data)
-        from scipy.ndimage import median_filter
+    return t, s
 
-        sm = median_filter(s, size=int(smooth), mode="nearest")
-    else:
-        sm = s
-    idx_after = np.flatnonzero(after)
+
+def _stage1(t, sm, t0, plateau_drop):
+    """Steps 1-3 of the rule (module docstring) on the (smoothed) tension ``sm``: the most negative tension, the
+    recovery and the end of the stage-1 plateau. -> (i_min, sigma_min, i_recovery, t_recovery, i_stage1_end);
+    i_recovery is len(t) when the record ends first."""
+    idx_after = np.flatnonzero(t > t0)
     i_min = int(idx_after[np.argmin(sm[idx_after])])
     s_min = float(sm[i_min])
     if not s_min < 0:
@@ -309,7 +303,13 @@ def detect_tension_stages(time, sigma, *, t0: float = 0.0, plateau_drop: float =
             f"the tension never leaves its stage-1 plateau by more than plateau_drop = {plateau_drop:g} "
             "before it recovers or the record ends"
         )
-    i1 = int(left[0])
+    return i_min, s_min, i_rec, t_rec, int(left[0])
+
+
+def _stage2(t, s, t0, i1, i_rec, min_points, max_search, rms_tol):
+    """Step 4 of the rule: the longest window in ln(t - t0) inside [i1, i_rec) on which ln|sigma| (raw samples)
+    is a straight line within ``rms_tol``, searched on at most ``max_search`` samples evenly spread in ln t.
+    -> (first, last) sample index and the rms residual of the fit on every sample of the window."""
     cand = np.arange(i1, i_rec)
     cand = cand[s[cand] < 0]
     if cand.size < min_points:
@@ -333,7 +333,26 @@ def detect_tension_stages(time, sigma, *, t0: float = 0.0, plateau_drop: float =
     a, b = int(cand[sub[bi]]), int(cand[sub[bj]])
     xs, ys = np.log(t[a:b + 1] - t0), np.log(-s[a:b + 1])
     coef = np.polyfit(xs, ys, 1)
-    rms = float(np.sqrt(np.mean((ys - np.polyval(coef, xs)) ** 2)))
+    return a, b, float(np.sqrt(np.mean((ys - np.polyval(coef, xs)) ** 2)))
+
+
+def detect_tension_stages(time, sigma, *, t0: float = 0.0, plateau_drop: float = 0.02, rms_tol: float = 0.01,
+                          min_points: int = 5, max_search: int = 600, smooth: int = 1) -> TensionStages:
+    """Find the three stages of a tension history sigma(t) (rule in the module docstring).
+
+    time: strictly increasing sample times; sigma: tension at those times (any unit); t0: time of the flow
+    reversal (the power law is in t - t0). Raises ConfigError if the tension is never negative, never leaves
+    its plateau, or no stage-2 window of ``min_points`` samples is straight within ``rms_tol``.
+    """
+    t, s = _stage_samples(time, sigma, t0, plateau_drop, rms_tol, min_points, max_search, smooth)
+    if smooth > 1:  # running median: locates the plateau and its exit in noisy data (the fit uses raw data)
+        from scipy.ndimage import median_filter
+
+        sm = median_filter(s, size=int(smooth), mode="nearest")
+    else:
+        sm = s
+    i_min, s_min, i_rec, t_rec, i1 = _stage1(t, sm, t0, plateau_drop)
+    a, b, rms = _stage2(t, s, t0, i1, i_rec, min_points, max_search, rms_tol)
     return TensionStages(
         t0=float(t0),
         t_sigma_min=float(t[i_min]),
