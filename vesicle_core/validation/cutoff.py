@@ -85,6 +85,63 @@ def _check_solve_kwargs(solve_kwargs):
             raise ConfigError(f"unknown solve argument {key!r}; allowed: {', '.join(sorted(allowed))}")
 
 
+def _solve_grid(delta, S, cutoffs, solve_kwargs):
+    """The PA (:func:`theory.solve`) at every (cutoff, S): l_* (eq. 31), l_peak, t_* and l_max_nontrivial at t_*,
+    and the l_max actually solved with. -> dict of (len(cutoffs), len(S)) arrays."""
+    shape = (len(cutoffs), S.size)
+    out = {"l_star": np.full(shape, np.nan), "l_peak": np.full(shape, np.nan), "t_star": np.full(shape, np.nan),
+           "l_max_nontrivial": np.zeros(shape, dtype=int), "l_max_used": np.zeros(shape, dtype=int)}
+    for i, L in enumerate(cutoffs):
+        for j, s in enumerate(S):
+            with warnings.catch_warnings():
+                # truncation is what is being measured; it is recorded in `truncated` instead
+                warnings.filterwarnings("ignore", message="modes up to the truncation", category=UserWarning)
+                sol = solve(delta, s, l_max=L, **solve_kwargs)
+            out["l_star"][i, j], out["l_peak"][i, j], out["t_star"][i, j] = sol.l_star, sol.l_peak, sol.t_star
+            out["l_max_nontrivial"][i, j], out["l_max_used"][i, j] = sol.l_max_nontrivial, sol.l_max
+    return out
+
+
+def _grid_vars(grid):
+    """The (l_max, S) variables of the result, with the active-cutoff flag and its count per cutoff."""
+    one = {"units": "1"}
+    ls = ("l_max", "S")
+    truncated = grid["l_max_nontrivial"] >= grid["l_max_used"]
+    return {
+        "l_star": (ls, grid["l_star"], {**one, "long_name": "eq. (31) at t_* over 3 <= l <= l_max_nontrivial"}),
+        "l_peak": (ls, grid["l_peak"], {**one, "long_name": "argmax_{3<=l<=l_max_nontrivial} Delta_l(t_*)"}),
+        "t_star": (ls, grid["t_star"], {"units": "1", "long_name": "t_* = argmin Delta_2, gamma_dot (t - t0)"}),
+        "l_max_nontrivial": (ls, grid["l_max_nontrivial"], {**one, "long_name":
+                                                             "largest l with |u_lm(t_*)| > 1e-5"}),
+        "l_max_used": (ls, grid["l_max_used"], {**one, "long_name": "mode cutoff of the solve"}),
+        "truncated": (ls, truncated, {"long_name": "cutoff active: l_max_nontrivial >= l_max_used"}),
+        "n_truncated": ("l_max", truncated.sum(axis=1), {**one, "long_name": "number of S with an active cutoff"}),
+    }
+
+
+def _fit_vars(S, grid, confidence):
+    """The fits l_* = c S^b and l_peak = c S^b per cutoff (:func:`fits.fit_power_law`) as (l_max,) variables."""
+    fits = {name: [fit_power_law(S, row, confidence=confidence) for row in grid[name]]
+            for name in ("l_star", "l_peak")}
+    level = f"{confidence:.0%}"
+
+    def per_lmax(name, key, text):
+        return ("l_max", np.array([getattr(f, key) for f in fits[name]], dtype=float), {"units": "1",
+                                                                                        "long_name": text})
+
+    return {
+        "b": per_lmax("l_star", "exponent", "exponent b of l_star = c S^b"),
+        "b_low": per_lmax("l_star", "ci_low", f"lower end of the {level} interval of b"),
+        "b_high": per_lmax("l_star", "ci_high", f"upper end of the {level} interval of b"),
+        "b_stderr": per_lmax("l_star", "stderr", "standard error of b"),
+        "prefactor": per_lmax("l_star", "prefactor", "c of l_star = c S^b"),
+        "r2": per_lmax("l_star", "r2", "coefficient of determination in log-log"),
+        "l_peak_b": per_lmax("l_peak", "exponent", "exponent of l_peak = c S^b"),
+        "l_peak_b_low": per_lmax("l_peak", "ci_low", f"lower end of the {level} interval of l_peak_b"),
+        "l_peak_b_high": per_lmax("l_peak", "ci_high", f"upper end of the {level} interval of l_peak_b"),
+    }
+
+
 def exponent_vs_lmax(delta, S_values, l_max_values, *, confidence=0.95, **solve_kwargs):
     """Exponent b of l_* ~ S^b (eq. 31, Fig. 4) for each PA mode cutoff l_max.
 
@@ -112,51 +169,12 @@ def exponent_vs_lmax(delta, S_values, l_max_values, *, confidence=0.95, **solve_
     S = _check_S(S_values)
     cutoffs = _check_lmax_values(l_max_values)
     _check_solve_kwargs(solve_kwargs)
-
-    shape = (len(cutoffs), S.size)
-    l_star, l_peak, t_star = np.full(shape, np.nan), np.full(shape, np.nan), np.full(shape, np.nan)
-    nontrivial, used = np.zeros(shape, dtype=int), np.zeros(shape, dtype=int)
-    for i, L in enumerate(cutoffs):
-        for j, s in enumerate(S):
-            with warnings.catch_warnings():
-                # truncation is what is being measured; it is recorded in `truncated` instead
-                warnings.filterwarnings("ignore", message="modes up to the truncation", category=UserWarning)
-                sol = solve(delta, s, l_max=L, **solve_kwargs)
-            l_star[i, j], l_peak[i, j], t_star[i, j] = sol.l_star, sol.l_peak, sol.t_star
-            nontrivial[i, j], used[i, j] = sol.l_max_nontrivial, sol.l_max
-    truncated = nontrivial >= used
-
-    fits = {name: [fit_power_law(S, row, confidence=confidence) for row in values]
-            for name, values in (("l_star", l_star), ("l_peak", l_peak))}
-    one = {"units": "1"}
-    level = f"{confidence:.0%}"
-
-    def per_lmax(name, key, text):
-        return ("l_max", np.array([getattr(f, key) for f in fits[name]], dtype=float), {**one, "long_name": text})
-
-    data = {
-        "l_star": (("l_max", "S"), l_star, {**one, "long_name": "eq. (31) at t_* over 3 <= l <= l_max_nontrivial"}),
-        "l_peak": (("l_max", "S"), l_peak, {**one, "long_name": "argmax_{3<=l<=l_max_nontrivial} Delta_l(t_*)"}),
-        "t_star": (("l_max", "S"), t_star, {"units": "1", "long_name": "t_* = argmin Delta_2, gamma_dot (t - t0)"}),
-        "l_max_nontrivial": (("l_max", "S"), nontrivial, {**one, "long_name": "largest l with |u_lm(t_*)| > 1e-5"}),
-        "l_max_used": (("l_max", "S"), used, {**one, "long_name": "mode cutoff of the solve"}),
-        "truncated": (("l_max", "S"), truncated, {"long_name": "cutoff active: l_max_nontrivial >= l_max_used"}),
-        "n_truncated": ("l_max", truncated.sum(axis=1), {**one, "long_name": "number of S with an active cutoff"}),
-        "b": per_lmax("l_star", "exponent", "exponent b of l_star = c S^b"),
-        "b_low": per_lmax("l_star", "ci_low", f"lower end of the {level} interval of b"),
-        "b_high": per_lmax("l_star", "ci_high", f"upper end of the {level} interval of b"),
-        "b_stderr": per_lmax("l_star", "stderr", "standard error of b"),
-        "prefactor": per_lmax("l_star", "prefactor", "c of l_star = c S^b"),
-        "r2": per_lmax("l_star", "r2", "coefficient of determination in log-log"),
-        "l_peak_b": per_lmax("l_peak", "exponent", "exponent of l_peak = c S^b"),
-        "l_peak_b_low": per_lmax("l_peak", "ci_low", f"lower end of the {level} interval of l_peak_b"),
-        "l_peak_b_high": per_lmax("l_peak", "ci_high", f"upper end of the {level} interval of l_peak_b"),
-    }
+    grid = _solve_grid(delta, S, cutoffs, solve_kwargs)
     labels = np.array([DEFAULT_LMAX_LABEL if L is None else L for L in cutoffs], dtype=int)
     coords = {
-        "l_max": ("l_max", labels, {**one, "long_name": f"mode cutoff of the PA ({DEFAULT_LMAX_LABEL} = "
-                                                        "theory.default_l_max(S))"}),
-        "S": ("S", S, {**one, "long_name": "flow strength S"}),
+        "l_max": ("l_max", labels, {"units": "1", "long_name": f"mode cutoff of the PA ({DEFAULT_LMAX_LABEL} = "
+                                                                "theory.default_l_max(S))"}),
+        "S": ("S", S, {"units": "1", "long_name": "flow strength S"}),
     }
     attrs = {
         "delta": float(delta),
@@ -166,4 +184,4 @@ def exponent_vs_lmax(delta, S_values, l_max_values, *, confidence=0.95, **solve_
         "fit": "ordinary least squares of ln l_star on ln S, Student-t interval with n-2 dof (fits.fit_power_law)",
         "source": "vesicle_core.validation.cutoff.exponent_vs_lmax",
     }
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    return xr.Dataset({**_grid_vars(grid), **_fit_vars(S, grid, confidence)}, coords=coords, attrs=attrs)
