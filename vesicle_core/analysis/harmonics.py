@@ -136,18 +136,13 @@ class Quadrature:
         return 0.75 * x[self.n_vertices:] + 0.25 * vmean
 
 
-def _check_choice(name, value, allowed):
-    if value not in allowed:
-        raise ConfigError(f"{name} must be one of {allowed}, got {value!r}")
-
-
 def quadrature(vertices, faces, center=None, R=None, rule="pn", weights="solid_angle") -> Quadrature:
     """Quadrature of eq. (30) on a closed triangulated surface (see the module docstring for the choices).
 
     center: default the volume centroid; R: default the equivalent radius (sphere of equal volume).
     """
-    _check_choice("weights", weights, WEIGHTS)
-    _check_choice("rule", rule, RULES)
+    check_choice("weights", weights, WEIGHTS)
+    check_choice("rule", rule, RULES)
     v, f = _as_mesh(vertices, faces)
     c0 = volume_centroid(v, f) if center is None else np.asarray(center, dtype=float).reshape(3)
     if R is None:
@@ -415,8 +410,8 @@ def wrinkle_amplitude(vertices, faces, ellipsoid, at="triangles", rule="pn") -> 
     facet's inward offset ~ edge^2 / 8R); "vertices": one value per vertex; "nodes": at the nodes of
     :func:`quadrature` with ``rule``.
     """
-    _check_choice("at", at, AMPLITUDE_AT)
-    _check_choice("rule", rule, RULES)
+    check_choice("at", at, AMPLITUDE_AT)
+    check_choice("rule", rule, RULES)
     v, f = _as_mesh(vertices, faces)
     if at == "vertices":
         return _radial_deviation(v, ellipsoid)
