@@ -14,7 +14,7 @@ PKG = Path(__file__).resolve().parents[1] / "vesicle_core"
 #: lower numbers are lower layers; a module may import its own subpackage and strictly lower layers only.
 #: Equal numbers are siblings that must not import each other (the solver and the analysis above all).
 LAYERS = {
-    "": 0,  # the base: errors, io, the package's __init__ (version)
+    "": 0,  # the base: errors, io, xp (the array-module switch), the package's __init__ (version)
     "model": 1,
     "data": 2,
     "geometry": 2,
@@ -99,7 +99,7 @@ def test_every_module_sits_in_a_known_layer():
     unknown = sorted(m for m in _modules() if _layer(m) not in LAYERS)
     assert not unknown, f"modules outside the layers of this test: {unknown}"
     base = sorted(m for m in _modules() if _layer(m) == "")
-    assert base == ["vesicle_core", "vesicle_core.errors", "vesicle_core.io"], base
+    assert base == ["vesicle_core", "vesicle_core.errors", "vesicle_core.io", "vesicle_core.xp"], base
 
 
 def test_imports_run_from_higher_layers_to_lower_ones():

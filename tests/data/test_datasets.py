@@ -35,8 +35,8 @@ def make_trajectory(level=4, times=TIMES, complete=1):
     for k in range(len(times)):
         v = u * (1 + A2[k] * y22 + A6[k] * y60 + A9[k] * y90)[:, None]
         nodes.append(v)
-        areas.append(M.surface_area(v, f))
-        vols.append(M.enclosed_volume(v, f))
+        areas.append(Sf.surface_area(v, f))
+        vols.append(Sf.enclosed_volume(v, f))
     nodes = np.array(nodes)
     nt = len(times)
     rng = np.random.default_rng(0)

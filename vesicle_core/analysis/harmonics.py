@@ -58,6 +58,8 @@ from ..errors import ConfigError, check_choice, check_range
 from ..geometry.surface import (
     _as_mesh,
     _equivalent_radius,
+    dot,
+    face_area_vectors,
     pn_centers,
     resolvable_l_max,
     solid_angles,
@@ -150,12 +152,12 @@ def quadrature(vertices, faces, center=None, R=None, rule="pn", weights="solid_a
     check_range("R", R, 0.0, None, lo_open=True)
     rel = v - c0
     a, b, c = rel[f[:, 0]], rel[f[:, 1]], rel[f[:, 2]]
-    areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    areas = np.linalg.norm(face_area_vectors(rel, f), axis=1)
     cen = (a + b + c) / 3.0
     if weights == "solid_angle":
         w_tri = solid_angles(v, f, c0)
     else:
-        w_tri = areas / np.einsum("ij,ij->i", cen, cen)
+        w_tri = areas / dot(cen.T, cen.T)
 
     def to_vertices(w):
         return np.bincount(f.ravel(), weights=np.repeat(w / 3.0, 3), minlength=len(v))

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, MeshError, check_range
+from .surface import dot, enclosed_volume, face_area_vectors, surface_area
 
 MAX_ICOSPHERE_LEVEL = 9  # level 9: 2.6 M vertices, already far beyond a 512^3 grid (edge ~ h)
 FAMILIES = ("icosphere", "quasiuniform")
@@ -69,22 +70,6 @@ def vertices_for_edge(edge: float, radius: float = 1.0) -> int:
     vertex, covering 4 pi radius^2."""
     return int(round(4.0 * math.pi * radius**2 / (math.sqrt(3) / 4 * edge**2) / 2.0 + 2))
 
-def face_area_vectors(vertices, faces):
-    """Half cross products 0.5 (x_j - x_i) x (x_k - x_i): |a| is the area, a/|a| the outward normal."""
-    xi, xj, xk = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
-    return 0.5 * np.cross(xj - xi, xk - xi)
-
-
-def surface_area(vertices, faces) -> float:
-    return float(np.linalg.norm(face_area_vectors(vertices, faces), axis=1).sum())
-
-
-def enclosed_volume(vertices, faces) -> float:
-    """Signed volume (divergence theorem); positive for outward-oriented closed surfaces."""
-    xi, xj, xk = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
-    return float(np.einsum("ij,ij->i", xi, np.cross(xj, xk)).sum() / 6.0)
-
-
 def unique_edges(faces) -> np.ndarray:
     e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     return np.unique(np.sort(e, axis=1), axis=0)
@@ -135,7 +120,7 @@ def mesh_quality(vertices, faces) -> dict:
     a = np.linalg.norm(xk - xj, axis=1)
     b = np.linalg.norm(xi - xk, axis=1)
     c = np.linalg.norm(xj - xi, axis=1)
-    area = 0.5 * np.linalg.norm(np.cross(xj - xi, xk - xi), axis=1)
+    area = np.linalg.norm(face_area_vectors(vertices, faces), axis=1)
     s = 0.5 * (a + b + c)
     inradius = area / s
     aspect = np.maximum(np.maximum(a, b), c) / (2.0 * math.sqrt(3.0) * inradius)
@@ -223,7 +208,7 @@ def quasiuniform_sphere(n_vertices: int, seed: int = 0, lloyd_steps: int = 8) ->
         # centroidal step on the sphere: each vertex moves to the area-weighted mean of its
         # triangles' centroids, approximating the centroid of its Voronoi cell
         cen = p[f].mean(axis=1)
-        w = np.linalg.norm(np.cross(p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]]), axis=1)
+        w = 2.0 * np.linalg.norm(face_area_vectors(p, f), axis=1)  # twice the area, as the weights always were
         acc = np.zeros_like(p)
         wsum = np.zeros(n)
         for k in range(3):
@@ -237,8 +222,7 @@ def quasiuniform_sphere(n_vertices: int, seed: int = 0, lloyd_steps: int = 8) ->
 
 def _hull_faces(p, ConvexHull):
     f = ConvexHull(p).simplices.astype(np.int64)
-    a = 0.5 * np.cross(p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]])
-    flip = np.einsum("ij,ij->i", a, p[f].mean(axis=1)) < 0
+    flip = dot(face_area_vectors(p, f).T, p[f].mean(axis=1).T) < 0
     f[flip] = f[flip][:, [0, 2, 1]]
     return f
 

@@ -22,20 +22,12 @@ import math
 import numpy as np
 
 from ..model.resolution import DEFAULT_KERNEL, KERNELS
-
-
-def _xp_of(a):
-    try:  # CuPy arrays know their own module; NumPy is the default
-        import cupy  # noqa: F401
-
-        return cupy.get_array_module(a)
-    except ImportError:
-        return np
+from ..xp import array_module
 
 
 def phi(r, xp=None):
     """Peskin's 4-point kernel phi(r), eq. (27), elementwise; support |r| < 2."""
-    xp = xp or _xp_of(r)
+    xp = xp or array_module(r)
     r = xp.abs(xp.asarray(r, dtype=float) if xp is np else r)
     inner = 0.125 * (3.0 - 2.0 * r + xp.sqrt(xp.clip(1.0 + 4.0 * r - 4.0 * r * r, 0.0, None)))
     outer = 0.125 * (5.0 - 2.0 * r - xp.sqrt(xp.clip(-7.0 + 12.0 * r - 4.0 * r * r, 0.0, None)))
@@ -44,7 +36,7 @@ def phi(r, xp=None):
 
 def delta3(r, h, xp=None):
     """The 3D regularised delta of eq. (26): prod_j phi(r_j / h) / h^3 for r of shape (..., 3)."""
-    xp = xp or _xp_of(r)
+    xp = xp or array_module(r)
     w = phi(r / h, xp)
     return w[..., 0] * w[..., 1] * w[..., 2] / h**3
 
@@ -79,7 +71,7 @@ def _bao6_weights(r, xp=np):
 
 def phi_kernel(r, kernel=DEFAULT_KERNEL, xp=None):
     """The 1D kernel ``kernel`` at distances r (in h), elementwise."""
-    xp = xp or _xp_of(r)
+    xp = xp or array_module(r)
     if kernel == "peskin4":
         return phi(r, xp)
     if kernel == "roma3":
@@ -111,7 +103,7 @@ def stencil(X, h, N, origin=0.0, xp=None, kernel=DEFAULT_KERNEL):
     w   : array (M, 3, w)      phi((X - x_m)/h) per axis; the 3D weight is the product over axes
                                (dimensionless: the 1/h^3 of eq. (26) is left to the caller).
     """
-    xp = xp or _xp_of(X)
+    xp = xp or array_module(X)
     s = (X - origin) / h
     if kernel == "roma3":
         c = xp.floor(s + 0.5)  # nearest node

@@ -45,30 +45,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, check_range
-
-
-def _xp(a):
-    try:
-        import cupy
-
-        return cupy.get_array_module(a)
-    except ImportError:
-        return np
-
+from ..geometry.surface import cross, dot
+from ..xp import array_module
 
 # Internally vectors are stored component-first ("structure of arrays"): a position array is (3, V),
 # per-corner data (3, 3, F) = (component, corner, face). Every operation is then an elementwise
 # NumPy/CuPy kernel on contiguous (F,) rows, 3-4x faster than np.cross on (F, 3) rows.
 _NXT = [1, 2, 0]  # corner c -> c+1 (counter-clockwise)
 _PRV = [2, 0, 1]  # corner c -> c+2 = c-1
-
-
-def _cross(a, b):
-    return _xp(a).stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @dataclass
@@ -138,14 +122,14 @@ def geometry(X, topo: Topology, area_model: str = "voronoi") -> Geometry:
     P = topo.gather(_components(X, xp))
     Pn, Pp = P[:, _NXT], P[:, _PRV]
     E = Pp - Pn
-    a = 0.5 * _cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
-    A = xp.sqrt(_dot(a, a))
+    a = 0.5 * cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    A = xp.sqrt(dot(a, a))
     n = a / A
-    gA = 0.5 * _cross(n[:, None], E)
+    gA = 0.5 * cross(n[:, None], E)
     Ht = -topo.scatter(gA)
     num = None
     if area_model == "voronoi":
-        num = _dot(P - Pn, P - Pn) * _dot(P - Pp, Pn - Pp) + _dot(P - Pp, P - Pp) * _dot(P - Pn, Pp - Pn)
+        num = dot(P - Pn, P - Pn) * dot(P - Pp, Pn - Pp) + dot(P - Pp, P - Pp) * dot(P - Pn, Pp - Pn)
         Ac = num / (16.0 * A)
     elif area_model == "barycentric":
         Ac = xp.broadcast_to(A / 3.0, (3, len(A)))
@@ -161,9 +145,9 @@ def _voronoi_weighted_gradient(geo: Geometry, wc):
     with i the corner and j, k the next ones; its derivatives w.r.t. i, j, k land on corners c, c+1, c+2."""
     i, j, k = geo.P, geo.Pn, geo.Pp
     eij, eik, ejk = i - j, i - k, j - k
-    lij, lik = _dot(eij, eij), _dot(eik, eik)
-    D1 = wc * _dot(eik, ejk)
-    D2 = wc * _dot(eij, -ejk)
+    lij, lik = dot(eij, eij), dot(eik, eik)
+    D1 = wc * dot(eik, ejk)
+    D2 = wc * dot(eij, -ejk)
     lij = wc * lij
     lik = wc * lik
     gi = 2 * eij * D1 + lij * ejk + 2 * eik * D2 - lik * ejk
@@ -180,15 +164,15 @@ def _bending_corner_gradient(geo: Geometry, topo: Topology, kappa, area_model):
     Av = geo.vertex_area
     Ht = geo.Ht
     v = (kappa / Av) * Ht  # (3, V)
-    w = -0.5 * kappa * _dot(Ht, Ht) / Av**2  # (V,)
+    w = -0.5 * kappa * dot(Ht, Ht) / Av**2  # (V,)
     vc = v[:, topo.fT]  # (3, 3, F)
     wc = w[topo.fT]  # (3, F)
     n = geo.normal
     E = geo.edges
-    b = 0.5 * _cross(E, vc).sum(axis=1)  # (3, F)
-    b_perp = b - _dot(n, b) * n
+    b = 0.5 * cross(E, vc).sum(axis=1)  # (3, F)
+    b_perp = b - dot(n, b) * n
     dv = vc[:, _NXT] - vc[:, _PRV]  # v_{q+} - v_{q++}
-    hess = _cross(b_perp[:, None], E) / (2.0 * geo.area) + 0.5 * _cross(dv, n[:, None])
+    hess = cross(b_perp[:, None], E) / (2.0 * geo.area) + 0.5 * cross(dv, n[:, None])
     if area_model == "voronoi":
         return _voronoi_weighted_gradient(geo, wc) - hess
     return wc.sum(axis=0) / 3.0 * geo.grad_area - hess
@@ -198,7 +182,7 @@ def bending_energy(X, topo: Topology, kappa=1.0, geo: Geometry | None = None, ar
     """Discrete Helfrich energy, eq. (25)."""
     xp = topo.xp
     geo = geo or geometry(X, topo, area_model)
-    return float(0.5 * kappa * xp.sum(_dot(geo.Ht, geo.Ht) / geo.vertex_area))
+    return float(0.5 * kappa * xp.sum(dot(geo.Ht, geo.Ht) / geo.vertex_area))
 
 
 def bending_force(X, topo: Topology, kappa=1.0, geo: Geometry | None = None, area_model="voronoi"):
@@ -226,12 +210,12 @@ def reference(X, topo: Topology) -> AreaReference:
 
 def enclosed_volume(X, topo: Topology, geo: Geometry | None = None) -> float:
     P = geo.P if geo is not None else topo.gather(_components(X, topo.xp))
-    return float(_dot(P[:, 0], _cross(P[:, 1], P[:, 2])).sum() / 6.0)
+    return float(dot(P[:, 0], cross(P[:, 1], P[:, 2])).sum() / 6.0)
 
 
 def _volume_corner_gradient(geo: Geometry):
     """dV/dX per corner: 1/6 x_{q+} x x_{q++} (divergence-theorem volume)."""
-    return _cross(geo.Pn, geo.Pp) / 6.0
+    return cross(geo.Pn, geo.Pp) / 6.0
 
 
 def volume_gradient(X, topo: Topology):
@@ -246,13 +230,13 @@ def local_tension(geo: Geometry, ref: AreaReference, Lambda):
 
 def global_tension(geo: Geometry, sigma_l) -> float:
     """Area-weighted mean of the local tension (Sec. V.C)."""
-    xp = _xp(sigma_l)
+    xp = array_module(sigma_l)
     return float(xp.sum(sigma_l * geo.area) / xp.sum(geo.area))
 
 
 def tension_energy(geo: Geometry, ref: AreaReference, Lambda) -> float:
     """Area penalty, eq. (A5): Lambda/2 sum (A_l - A_l^0)^2 / A_l^0."""
-    xp = _xp(geo.area)
+    xp = array_module(geo.area)
     return float(0.5 * Lambda * xp.sum((geo.area - ref.face_area) ** 2 / ref.face_area))
 
 

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, NumericalInstability
+from ..xp import to_numpy
 
 CELLS = ("face", "vertex")
 
@@ -221,8 +222,8 @@ def face_D_matrix(geo, topo):
     """D for triangle cells as a scipy.sparse CSR matrix (F, 3V): row l holds dA_l/dX at its 3 corners."""
     import scipy.sparse as sp
 
-    fT = np.asarray(topo.fT.get() if hasattr(topo.fT, "get") else topo.fT)
-    gA = np.asarray(geo.grad_area.get() if hasattr(geo.grad_area, "get") else geo.grad_area)  # (3 k, 3 c, F)
+    fT = to_numpy(topo.fT)
+    gA = to_numpy(geo.grad_area)  # (3 k, 3 c, F)
     nF = fT.shape[1]
     rows = np.broadcast_to(np.arange(nF)[None, None, :], (3, 3, nF))  # (corner, component, face)
     cols = np.broadcast_to(3 * fT[:, None, :] + np.arange(3)[None, :, None], (3, 3, nF))
@@ -267,7 +268,7 @@ class LocalPreconditioner:
         from .mobility import pair_table
 
         self.topo = topo
-        self.W = np.asarray(A0.get() if hasattr(A0, "get") else A0)
+        self.W = to_numpy(A0)
         self.Lambda = float(Lambda)
         self.table = pair_table(mobility, r_max=r_cut_h)
         self.r_cut = r_cut_h * mobility.grid.h
@@ -287,8 +288,8 @@ class LocalPreconditioner:
 
         from .mobility import local_mobility_matrix
 
-        X = np.asarray(geo.P.get() if hasattr(geo.P, "get") else geo.P)  # corner positions -> vertices
-        fT = np.asarray(self.topo.fT.get() if hasattr(self.topo.fT, "get") else self.topo.fT)
+        X = to_numpy(geo.P)  # corner positions -> vertices
+        fT = to_numpy(self.topo.fT)
         pos = np.empty((self.topo.n_vertices, 3))
         for c in range(3):
             pos[fT[c]] = X[:, c].T
@@ -315,7 +316,7 @@ class LocalPreconditioner:
         try:
             if self._lu is None or self._uses >= self.refresh or not 0.7 <= dt / self._dt <= 1.4:
                 self._build(geo, dt)
-            rh = np.asarray(r.get() if hasattr(r, "get") else r)
+            rh = to_numpy(r)
             z = self._lu.solve(rh)
         finally:
             self.seconds += time.perf_counter() - t0

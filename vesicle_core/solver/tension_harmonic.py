@@ -33,6 +33,8 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
+from ..geometry.surface import cross_rows
+from ..xp import to_numpy
 from .tension import SolveInfo, face_D, face_DT, pcg
 
 
@@ -146,13 +148,10 @@ class HarmonicTensionSolver:
     def _xp_faces(self, c):
         return self.topo.xp.asarray(self.space.faces(c))
 
-    def _np(self, a):
-        return np.asarray(a.get() if hasattr(a, "get") else a)
-
     def apply_rate(self, c, geo):
         """(B^T D M D^T B c, M D^T B c): the area rate per unit time of a tension c and its velocity."""
         q = self.mobility.apply(face_DT(self._xp_faces(c), geo, self.topo))
-        return self.space.test(self._np(face_D(q, geo, self.topo))), q
+        return self.space.test(to_numpy(face_D(q, geo, self.topo))), q
 
     def operator(self, c, geo, dt):
         """(A c, M D^T B c) with A = dt B^T D M D^T B + G / Lambda."""
@@ -193,7 +192,7 @@ class HarmonicTensionSolver:
         self._uses += 1
         c = np.array(c0, dtype=float, copy=True)
         U = self.mobility.apply(F - face_DT(self._xp_faces(c), geo, self.topo)) + u_inf
-        r = sp.test(self._np(dt * face_D(U, geo, self.topo) + area_error)) - sp.G @ c / self.Lambda
+        r = sp.test(to_numpy(dt * face_D(U, geo, self.topo) + area_error)) - sp.G @ c / self.Lambda
         c, U, it, res, res0 = pcg(c, U, r, lambda p: self.operator(p, geo, dt), lambda r: self.precondition(r, dt),
                                   lambda a, b: float(a @ b), self.strain_rms, self.tol, self.maxiter)
         self.last = SolveInfo(it, res, res0)
@@ -265,18 +264,18 @@ class AreaALE:
 
         t0 = time.perf_counter()
         sp = self.space
-        Xn = np.asarray(X.get() if hasattr(X, "get") else X, float)
-        faces = np.asarray(topo.faces.get() if hasattr(topo.faces, "get") else topo.faces)
-        dXn = np.asarray(dX.get() if hasattr(dX, "get") else dX, float)
-        err = np.asarray(area_error.get() if hasattr(area_error, "get") else area_error, float)
+        Xn = np.asarray(to_numpy(X), float)
+        faces = to_numpy(topo.faces)
+        dXn = np.asarray(to_numpy(dX), float)
+        err = np.asarray(to_numpy(area_error), float)
         D = face_D_matrix(geo, topo)  # (F, 3V)
         x = D @ dXn.ravel() + err
         y = -(x - sp.W * (sp.B @ sp.G_solve(sp.B.T @ x)))
         n = vertex_normals(Xn, faces)
         a = np.where(np.abs(n[:, 0:1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
-        t1 = np.cross(n, a)
+        t1 = cross_rows(n, a)
         t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = np.cross(n, t1)
+        t2 = cross_rows(n, t1)
         V = Xn.shape[0]
         rows = np.concatenate([3 * np.arange(V)[:, None] + np.arange(3)[None, :]] * 2, axis=1).ravel()
         iv = 2 * np.arange(V)[:, None]

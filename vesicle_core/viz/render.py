@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError, require
+from ..geometry import surface
 
 __all__ = [
     "VIEWS",
@@ -119,19 +120,7 @@ def vertex_average(vertices, faces, face_values):
     A per-triangle tension carries a mesh-scale alternation that hides the wrinkles; its vertex average is the
     field on the scale the wrinkles live on (Figs. 6e, 7c).
     """
-    v, f, val = _check_mesh(vertices, faces, face_values)
-    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
-    num = np.bincount(f.ravel(), weights=np.repeat(val * area, 3), minlength=len(v))
-    den = np.bincount(f.ravel(), weights=np.repeat(area, 3), minlength=len(v))
-    return num / np.maximum(den, 1e-300)
-
-
-def _vertex_normals(verts, faces):
-    n = np.cross(verts[faces[:, 1]] - verts[faces[:, 0]], verts[faces[:, 2]] - verts[faces[:, 0]])
-    out = np.zeros_like(verts)
-    for k in range(3):
-        np.add.at(out, faces[:, k], n)
-    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+    return surface.vertex_average(*_check_mesh(vertices, faces, face_values))
 
 
 def _pyvista_images(shapes, faces, views, px, clim, cmap, extent):
@@ -178,14 +167,12 @@ def _mpl_images(shapes, faces, views, px, clim, cmap, extent):
     images = []
     for (verts, vals), view in zip(shapes, views, strict=True):
         d, up = (np.asarray(a, dtype=float) for a in VIEWS[view])
-        c = verts.mean(axis=0)
-        tri = verts[faces] - c
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        tri = verts[faces] - verts.mean(axis=0)
+        n = surface.face_normals(verts, faces)
         light = d + 0.35 * up
         light /= np.linalg.norm(light)
         if len(vals) == len(verts):
-            vn = _vertex_normals(verts, faces)
+            vn = surface.vertex_normals(verts, faces)
             shade = (0.35 + 0.65 * np.clip(vn @ light, 0.0, 1.0))[faces].mean(axis=1)
             rgba = cm(norm(np.asarray(vals)[faces].mean(axis=1)))
         else:
