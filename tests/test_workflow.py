@@ -265,7 +265,8 @@ def test_lint_is_clean(tmp_path):
 def test_tiny_workflow_end_to_end(tmp_path):
     import xarray as xr
 
-    from vesicle_core.data.catalog import open_sweep, read_catalog
+    from vesicle_core.data.catalog import read_catalog
+    from vesicle_core.data.sweep import open_sweep
 
     wd = workflow_copy(tmp_path)
     r = snakemake(wd, "--cores", "2", "--configfile", "config/tiny.yaml", timeout=900)

@@ -11,7 +11,10 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from vesicle_core.data import case_ids as Ci
 from vesicle_core.data import catalog as C
+from vesicle_core.data import sweep as Sw
+from vesicle_core.errors import ConfigError
 from vesicle_core.model.units import chi_from_S
 
 
@@ -68,7 +71,7 @@ def write_sweep(root, points, *, N=32, level=3, theory=True, family="icosphere",
     returns the written paths."""
     paths = []
     for i, (delta, S, n_time) in enumerate(points):
-        cid = C.case_id(delta, S=S, N=N, family=family, level=level, n_vertices=n_vertices, tag=tag)
+        cid = Ci.case_id(delta, S=S, N=N, family=family, level=level, n_vertices=n_vertices, tag=tag)
         p = root / "runs" / cid / "spectra.nc"
         p.parent.mkdir(parents=True, exist_ok=True)
         extra = dict(run_attrs or {})
@@ -77,11 +80,11 @@ def write_sweep(root, points, *, N=32, level=3, theory=True, family="icosphere",
         synthetic_spectra(delta, S, n_time=n_time, N=N, level=level, seed=i, run_attrs=extra).to_netcdf(p)
         paths.append(p)
         if theory:
-            tp = root / "theory" / f"{C.theory_id(delta, S)}.nc"
+            tp = root / "theory" / f"{Ci.theory_id(delta, S)}.nc"
             tp.parent.mkdir(parents=True, exist_ok=True)
             synthetic_spectra(delta, S, n_time=51, t0=0.0, t1=1.5, l_max=20, kind="theory").to_netcdf(tp)
             paths.append(tp)
-    mp = root / "meshes" / f"{C.mesh_id(points[0][0], family, level=level, n_vertices=n_vertices)}.nc"
+    mp = root / "meshes" / f"{Ci.mesh_id(points[0][0], family, level=level, n_vertices=n_vertices)}.nc"
     mp.parent.mkdir(parents=True, exist_ok=True)
     xr.Dataset(
         {"node_x": ("n_node", np.zeros(4)), "node_y": ("n_node", np.zeros(4)), "node_z": ("n_node", np.zeros(4)),
@@ -105,9 +108,9 @@ def write_sweep(root, points, *, N=32, level=3, theory=True, family="icosphere",
     (dict(delta=0.116, S=553, N=16, family="icosphere", level=2, tag="fine-dt"), "D0.116_S553_N16_L2_fine-dt"),
 ])
 def test_case_ids_are_readable_and_parse_back(kwargs, expect):
-    cid = C.case_id(**kwargs)
+    cid = Ci.case_id(**kwargs)
     assert cid == expect
-    p = C.parse_case_id(cid)
+    p = Ci.parse_case_id(cid)
     assert p["Delta"] == kwargs["delta"] and p["N"] == kwargs["N"]
     if "S" in kwargs:
         assert p["S"] == kwargs["S"] and p["chi"] == pytest.approx(chi_from_S(kwargs["S"], kwargs["delta"]))
@@ -116,16 +119,16 @@ def test_case_ids_are_readable_and_parse_back(kwargs, expect):
 
 
 def test_ids_do_not_depend_on_float_noise_and_reject_bad_input():
-    assert C.case_id(0.116, S=553.0000000001, N=32, family="icosphere", level=3) == "D0.116_S553_N32_L3"
-    assert C.theory_id(0.116, 2224.0) == "D0.116_S2224"
-    assert C.mesh_id(0.116, "icosphere", 3) == "icosphere_L3_D0.116"
-    assert C.mesh_id(0.997, "quasiuniform", 5, 26070, 0) == "quasiuniform_n26070_s0_D0.997"
-    assert C.parse_case_id("icosphere_L3_D0.116") is None
-    assert C.parse_case_id("D0.116_S553")["N"] is None
-    with pytest.raises(C.ConfigError):
-        C.case_id(0.116, S=1, chi=1)
-    with pytest.raises(C.ConfigError, match="tag"):
-        C.case_id(0.116, S=1, tag="bad tag")
+    assert Ci.case_id(0.116, S=553.0000000001, N=32, family="icosphere", level=3) == "D0.116_S553_N32_L3"
+    assert Ci.theory_id(0.116, 2224.0) == "D0.116_S2224"
+    assert Ci.mesh_id(0.116, "icosphere", 3) == "icosphere_L3_D0.116"
+    assert Ci.mesh_id(0.997, "quasiuniform", 5, 26070, 0) == "quasiuniform_n26070_s0_D0.997"
+    assert Ci.parse_case_id("icosphere_L3_D0.116") is None
+    assert Ci.parse_case_id("D0.116_S553")["N"] is None
+    with pytest.raises(ConfigError):
+        Ci.case_id(0.116, S=1, chi=1)
+    with pytest.raises(ConfigError, match="tag"):
+        Ci.case_id(0.116, S=1, tag="bad tag")
 
 
 # --------------------------------------------------------------------------- catalog files
@@ -175,7 +178,7 @@ def test_open_sweep_stacks_spectra_along_delta_and_S(tmp_path):
     root = tmp_path / "results"
     pts = [(0.116, 553.0, 21), (0.116, 1106.5, 31), (0.116, 2224.0, 15), (0.997, 237.0, 25)]
     C.write_catalog(write_sweep(root, pts), root / "catalog.csv")
-    ds = C.open_sweep(root / "catalog.csv")
+    ds = Sw.open_sweep(root / "catalog.csv")
     assert ds.sizes["Delta"] == 2 and ds.sizes["S"] == 4
     lstar = float(ds.l_star.sel(S=553).sel(Delta=0.116))
     assert lstar == pytest.approx(3.0 + 553.0 ** (1 / 3) / 2)
@@ -190,12 +193,12 @@ def test_open_sweep_stacks_spectra_along_delta_and_S(tmp_path):
     assert str(ds.case_id.sel(Delta=0.116, S=1106.5).values) == "D0.116_S1106.5_N32_L3"
     assert float(ds.chi.sel(Delta=0.116, S=553)) == pytest.approx(chi_from_S(553.0, 0.116))
     # the JSON and the directory work too; theory stacks the same way
-    assert C.open_sweep(root / "catalog.json").sizes["S"] == 4
-    th = C.open_sweep(root, kind="theory")
+    assert Sw.open_sweep(root / "catalog.json").sizes["S"] == 4
+    th = Sw.open_sweep(root, kind="theory")
     assert th.sizes["S"] == 4 and "Delta_tilde_l_at_t_star" not in th
     # explicit common time grid
     grid = np.linspace(0.0, 0.5, 6)
-    assert C.open_sweep(root / "catalog.csv", time=grid).sizes["time"] == 6
+    assert Sw.open_sweep(root / "catalog.csv", time=grid).sizes["time"] == 6
 
 
 def test_open_sweep_filters_and_duplicates(tmp_path):
@@ -204,13 +207,13 @@ def test_open_sweep_filters_and_duplicates(tmp_path):
     paths += [p for p in write_sweep(root, [(0.116, 553.0, 11)], N=64, theory=False) if p.name == "spectra.nc"]
     C.write_catalog(sorted(set(paths)), root / "catalog.csv")
     with pytest.raises(C.CatalogError, match="N=..."):
-        C.open_sweep(root / "catalog.csv")
-    ds = C.open_sweep(root / "catalog.csv", N=64)
+        Sw.open_sweep(root / "catalog.csv")
+    ds = Sw.open_sweep(root / "catalog.csv", N=64)
     assert str(ds.case_id.item()) == "D0.116_S553_N64_L3"
     with pytest.raises(C.CatalogError, match="no spectra"):
-        C.open_sweep(root / "catalog.csv", N=128)
+        Sw.open_sweep(root / "catalog.csv", N=128)
     with pytest.raises(C.CatalogError, match="unknown catalog column"):
-        C.open_sweep(root / "catalog.csv", colour="red")
+        Sw.open_sweep(root / "catalog.csv", colour="red")
 
 
 def test_catalog_command(tmp_path, capsys):
@@ -224,7 +227,7 @@ def test_catalog_command(tmp_path, capsys):
     assert args.func(args) == 0
     assert "6 datasets" in capsys.readouterr().out
     assert (root / "catalog.json").is_file()
-    assert C.open_sweep(root / "catalog.csv").sizes["S"] == 2
+    assert Sw.open_sweep(root / "catalog.csv").sizes["S"] == 2
 
 
 # --------------------------------------------------------------------------- mesh and run columns
@@ -258,8 +261,8 @@ def real_runs(tmp_path_factory):
     paths = []
     for c in cases.values():
         m = c["mesh"]
-        c["id"] = C.case_id(delta, S=S, N=16, **c["id_kw"])
-        mp = root / "meshes" / f"{C.mesh_id(delta, m.attrs['family'], max(m.attrs['level'], 0), m.n_vertices)}.nc"
+        c["id"] = Ci.case_id(delta, S=S, N=16, **c["id_kw"])
+        mp = root / "meshes" / f"{Ci.mesh_id(delta, m.attrs['family'], max(m.attrs['level'], 0), m.n_vertices)}.nc"
         mp.parent.mkdir(parents=True, exist_ok=True)
         M.save(m, mp)
         cfg = RunConfig(chi=20.0, N=16, stretch=0.05, t_end=0.05, output_every=0.05, Lambda=2e4, K_volume=1e6,
@@ -303,7 +306,7 @@ def test_open_sweep_selects_by_mesh_and_run_columns(real_runs):
     root, cases = real_runs
     A, B = cases["A"], cases["B"]
     with pytest.raises(C.CatalogError, match="two spectra datasets") as exc:
-        C.open_sweep(root / "catalog.csv")
+        Sw.open_sweep(root / "catalog.csv")
     for c in ("n_vertices=...", "mesh_family=...", "scheme=...", "dtype=...", "kernel=...", "tag=..."):
         assert c in str(exc.value)  # the error names the columns that tell the two apart
     expect = {  # selector -> case it must pick
@@ -315,16 +318,16 @@ def test_open_sweep_selects_by_mesh_and_run_columns(real_runs):
         "list": ({"scheme": ["inextensible", "projection"]}, A),
     }
     for name, (where, case) in expect.items():
-        ds = C.open_sweep(root / "catalog.csv", **where)
+        ds = Sw.open_sweep(root / "catalog.csv", **where)
         assert str(ds.case_id.item()) == case["id"], name
         with xr.open_dataset(case["paths"]["spectra"]) as ref:  # the right file was opened
             assert float(ds.l_star.item()) == float(ref.l_star)
         assert float(ds.n_vertices.item()) == case["mesh"].n_vertices
         assert str(ds.scheme.item()) == case["cfg"]["scheme"] and str(ds.kernel.item()) == case["cfg"]["kernel"]
     with pytest.raises(C.CatalogError, match="no spectra datasets"):
-        C.open_sweep(root / "catalog.csv", n_vertices=642)
+        Sw.open_sweep(root / "catalog.csv", n_vertices=642)
     with pytest.raises(C.CatalogError, match="no spectra datasets"):
-        C.open_sweep(root / "catalog.csv", scheme="explicit", kernel="peskin4")
+        Sw.open_sweep(root / "catalog.csv", scheme="explicit", kernel="peskin4")
 
 
 def test_old_files_and_missing_attributes(tmp_path):
@@ -358,21 +361,21 @@ def test_old_files_and_missing_attributes(tmp_path):
     fit = next(r for r in rows.values() if r["kind"] == "fit")
     assert all(fit[c] == "" for c in NEW_COLUMNS)
     # the two N = 64 cases that differ only in the mesh are told apart
-    assert str(C.open_sweep(root, N=64, n_vertices=642).case_id.item()) == "D0.116_S553_N64_L3"
-    assert str(C.open_sweep(root, N=64, n_vertices="2562").case_id.item()) == "D0.116_S553_N64_Q2562_q"
-    assert str(C.open_sweep(root, N=64, scheme="projection").case_id.item()) == "D0.116_S553_N64_Q2562_q"
-    assert str(C.open_sweep(root, N=None).case_id.item()) == "D0.5_S10"  # None selects empty cells
+    assert str(Sw.open_sweep(root, N=64, n_vertices=642).case_id.item()) == "D0.116_S553_N64_L3"
+    assert str(Sw.open_sweep(root, N=64, n_vertices="2562").case_id.item()) == "D0.116_S553_N64_Q2562_q"
+    assert str(Sw.open_sweep(root, N=64, scheme="projection").case_id.item()) == "D0.116_S553_N64_Q2562_q"
+    assert str(Sw.open_sweep(root, N=None).case_id.item()) == "D0.5_S10"  # None selects empty cells
 
 
 def test_selector_errors_name_the_columns(tmp_path):
     root = tmp_path / "results"
     C.write_catalog(write_sweep(root, [(0.116, 553.0, 21)], theory=False), root / "catalog.csv")
     with pytest.raises(C.CatalogError) as exc:
-        C.open_sweep(root / "catalog.csv", n_vertex=642)
+        Sw.open_sweep(root / "catalog.csv", n_vertex=642)
     msg = str(exc.value)
     assert "'n_vertex'" in msg and all(c in msg for c in C.COLUMNS)
     with pytest.raises(ValueError, match="numeric column"):  # CatalogError is a ValueError
-        C.open_sweep(root / "catalog.csv", n_vertices="many")
+        Sw.open_sweep(root / "catalog.csv", n_vertices="many")
     # a catalog written before these columns existed: selecting by one says to rebuild it
     table = _csv_table(root / "catalog.csv")
     keep = [c for c in table[0] if c not in NEW_COLUMNS + ("variables",)]
@@ -380,9 +383,9 @@ def test_selector_errors_name_the_columns(tmp_path):
         w = csv.DictWriter(fh, keep, extrasaction="ignore")
         w.writeheader()
         w.writerows(table)
-    assert str(C.open_sweep(root / "old.csv", N=32).case_id.item()) == "D0.116_S553_N32_L3"
+    assert str(Sw.open_sweep(root / "old.csv", N=32).case_id.item()) == "D0.116_S553_N32_L3"
     with pytest.raises(C.CatalogError, match="rebuild the catalog") as exc:
-        C.open_sweep(root / "old.csv", n_vertices=642)
+        Sw.open_sweep(root / "old.csv", n_vertices=642)
     assert "n_vertices" in str(exc.value) and "'scheme'" not in str(exc.value)
 
 
@@ -411,11 +414,11 @@ def _rows():
 ])
 def test_select_rows_with_and_without_pandas(monkeypatch, use_pandas, where, expect):
     if not use_pandas:
-        monkeypatch.setattr(C, "_pandas", lambda: None)
+        monkeypatch.setattr(Sw, "_pandas", lambda: None)
     else:
-        assert C._pandas() is not None
+        assert Sw._pandas() is not None
     columns = ["case_id", "N", "n_vertices", "scheme", "tag", "S", "variables"]
-    got = C.select_rows(_rows(), columns, where)
+    got = Sw.select_rows(_rows(), columns, where)
     assert "".join(r["case_id"] for r in got) == expect
 
 

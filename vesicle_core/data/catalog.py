@@ -1,19 +1,4 @@
-"""Index of every dataset a sweep produced, and a sweep opened as one xarray object.
-
-Identifiers
------------
-Sweep points get readable ids built from their physical parameters only (the Snakemake workflow and this
-module share the builders below, so a path always tells what is in it):
-
-    case      D0.116_S553_N32_L3        Delta, S (or ``chi67`` when the flow was given as chi), grid N, mesh
-              D0.116_S553_N512_Q26070   (L<level>: icosphere; Q<n_vertices>[s<seed>]: quasi-uniform family),
-              D0.116_S553_N32_L3_fine   optional tag (letters, digits, '-') for otherwise equal cases
-    theory    D0.116_S553               the perturbation analysis depends on Delta and S only
-    mesh      icosphere_L3_D0.116, quasiuniform_n26070_s0_D0.997
-
-Numbers are written with ``%.6g`` (``1106.5``, ``0.116``); ``parse_case_id`` reads every form back. The ids hold
-the *nominal* (configured) Delta and S; the datasets themselves record the meshed Delta, which differs from it by
-~1e-13 when the mesh was built with ``--delta``.
+"""Index of every dataset a sweep produced: catalog rows, the CSV/Parquet catalog and its ESM collection.
 
 Catalog
 -------
@@ -52,27 +37,7 @@ It opens the relative ``path`` from the current working directory, not from the 
 ``to_dataset_dict()`` with the catalog's directory as working directory (or use :func:`open_sweep`, which resolves
 the paths itself).
 
-Sweep as one Dataset
---------------------
-``open_sweep(path)`` stacks all spectra (``kind="spectra"``, default) or PA datasets (``kind="theory"``) along
-the dimensions ``Delta`` and ``S`` (outer join; points not in the sweep are NaN), so
-``open_sweep("results/catalog.csv").l_star.sel(S=553)`` works. Runs have different time axes, so:
-
-* scalars (``l_star``, ``l_peak``, ``t_star``, ``l_max_nontrivial``, ...) are kept as they are;
-* per-l arrays at t_* are added: ``Delta_l_at_t_star`` (and ``Delta_tilde_l_at_t_star`` for spectra);
-  other per-l arrays without time are kept; ``l`` is the outer join of the runs' degrees (NaN above a run's l_max);
-* time series (sigma, Delta_l, A_p_bar, l_star_t, ...) are linearly interpolated onto one common ``time``
-  coordinate (``time=`` argument; default: the time axis of the run with the most frames, clipped to the
-  interval every run covers); values outside a run's own time range are NaN;
-* mode arrays with an ``m`` dimension (u_lm), A_p maps and geometry arrays are dropped (open a single run's file
-  for those: the ``path`` variable holds its location).
-
-Per-point metadata become variables on (Delta, S): ``case_id``, ``path``, ``chi``, ``N``, ``mesh_level``,
-``n_vertices``, ``mesh_family``, ``scheme``, ``dtype``, ``kernel``, ``coupling``, ``tension_space``, ``tag``.
-If two catalog rows share (Delta, S) (e.g. two grids or two meshes), select by any catalog column:
-``open_sweep("results/catalog.csv", N=64, n_vertices=642)``, ``scheme="projection"``, ``tag="coarse"``. Numeric
-columns compare as numbers (``n_vertices="642"`` selects 642; floats to 1e-9 relative), a list selects any of its
-values, ``None`` or ``""`` selects empty cells, and ``variables="l_star"`` the files holding that variable.
+Case ids are :mod:`vesicle_core.data.case_ids`; a sweep opened as one Dataset is :mod:`vesicle_core.data.sweep`.
 """
 
 from __future__ import annotations
@@ -81,29 +46,21 @@ import csv
 import json
 import math
 import os
-import re
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError, VesicleError
-from ..model.parameters import MESH_PARAMETERS, RUN_PARAMETERS
-from ..model.parameters import defaults as parameter_defaults
+from ..errors import VesicleError
 from ..model.resolution import DEFAULT_KERNEL  # also the kernel of files written before RunConfig.kernel existed
+from .case_ids import parse_case_id
 
 __all__ = [
     "COLUMNS",
+    "CatalogError",
     "build_catalog",
-    "case_id",
     "catalog_row",
-    "fmt_number",
-    "mesh_id",
-    "open_sweep",
-    "parse_case_id",
     "read_catalog",
-    "select_rows",
-    "theory_id",
     "write_catalog",
 ]
 
@@ -116,115 +73,10 @@ RUN_KINDS = ("trajectory", "spectra")
 
 KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")
 ESMCAT_VERSION = "0.1.0"
-TAG_PATTERN = r"[A-Za-z0-9][A-Za-z0-9-]*"
 
 
 class CatalogError(VesicleError, ValueError):
     """A catalog cannot be built or read, or a sweep cannot be stacked (the message says why)."""
-
-
-# --------------------------------------------------------------------------- identifiers
-def fmt_number(x) -> str:
-    """Compact, stable text of a number for ids: %.6g without '+' in exponents (553, 1106.5, 0.116, 1e-05)."""
-    x = float(x)
-    if not math.isfinite(x):
-        raise ConfigError(f"cannot build an id from the number {x!r}")
-    if x == int(x) and abs(x) < 1e15:
-        x = int(x)
-        return str(x) if abs(x) < 1e6 else f"{x:.6g}".replace("e+", "e")
-    return f"{x:.6g}".replace("e+", "e")
-
-
-# the id functions default to the parameter table's mesh and grid (one home for defaults)
-_MESH_DEFAULTS = parameter_defaults(MESH_PARAMETERS)
-_RUN_DEFAULT_N = parameter_defaults(RUN_PARAMETERS)["N"]
-
-
-def _mesh_part(family, level, n_vertices=None, seed=0):
-    if family == "icosphere":
-        return f"L{int(level)}"
-    if family == "quasiuniform":
-        part = f"Q{int(n_vertices)}" if n_vertices else f"QL{int(level)}"
-        return part + (f"s{int(seed)}" if seed else "")
-    raise ConfigError(f"mesh family must be 'icosphere' or 'quasiuniform', got {family!r}")
-
-
-def case_id(delta, S=None, chi=None, N=_RUN_DEFAULT_N, family=_MESH_DEFAULTS["family"], level=_MESH_DEFAULTS["level"],
-            n_vertices=None, seed=0, tag=None) -> str:
-    """Id of one simulation case from its physical parameters (module docstring)."""
-    if (S is None) == (chi is None):
-        raise ConfigError("a case needs exactly one of S and chi")
-    flow = f"S{fmt_number(S)}" if S is not None else f"chi{fmt_number(chi)}"
-    out = f"D{fmt_number(delta)}_{flow}_N{int(N)}_{_mesh_part(family, level, n_vertices, seed)}"
-    if tag:
-        if not re.fullmatch(TAG_PATTERN, str(tag)):
-            raise ConfigError(f"tag must match {TAG_PATTERN} (letters, digits, '-'), got {tag!r}")
-        out += f"_{tag}"
-    return out
-
-
-def theory_id(delta, S, seed=0) -> str:
-    """Id of a perturbation-analysis dataset: it depends on Delta, S (and the thermal seed) only."""
-    return f"D{fmt_number(delta)}_S{fmt_number(S)}" + (f"_seed{int(seed)}" if seed else "")
-
-
-def mesh_id(delta, family=_MESH_DEFAULTS["family"], level=_MESH_DEFAULTS["level"], n_vertices=None, seed=0,
-            radius=1.0) -> str:
-    """Id of a mesh: family, resolution, seed and target Delta (meshes are shared between flow strengths)."""
-    if family == "icosphere":
-        base = f"icosphere_L{int(level)}"
-    elif family == "quasiuniform":
-        nv = int(n_vertices) if n_vertices else 10 * 4 ** int(level) + 2
-        base = f"quasiuniform_n{nv}_s{int(seed)}"
-    else:
-        raise ConfigError(f"mesh family must be 'icosphere' or 'quasiuniform', got {family!r}")
-    out = f"{base}_D{fmt_number(delta)}"
-    if float(radius) != 1.0:
-        out += f"_R{fmt_number(radius)}"
-    return out
-
-
-_NUM = r"[0-9]+(?:\.[0-9]*)?(?:e-?[0-9]+)?"
-_CASE_RE = re.compile(
-    rf"^D(?P<delta>{_NUM})_(?:S(?P<S>{_NUM})|chi(?P<chi>{_NUM}))"
-    rf"(?:_N(?P<N>[0-9]+)_(?:L(?P<level>[0-9]+)|QL(?P<qlevel>[0-9]+)(?:s(?P<qseed>[0-9]+))?"
-    rf"|Q(?P<nv>[0-9]+)(?:s(?P<seed>[0-9]+))?))?"
-    rf"(?:_seed(?P<theory_seed>[0-9]+))?(?:_(?P<tag>{TAG_PATTERN}))?$"
-)
-
-
-def parse_case_id(text: str) -> dict | None:
-    """Parameters encoded in a case or theory id (None if ``text`` is not such an id).
-
-    Returns Delta, S, chi (both filled: the missing one from :mod:`units`), N, mesh_family, mesh_level,
-    n_vertices, tag; entries not encoded are None.
-    """
-    from ..model.units import S_from_chi, chi_from_S
-
-    m = _CASE_RE.match(str(text))
-    if not m:
-        return None
-    g = m.groupdict()
-    delta = float(g["delta"])
-    if delta <= 0:
-        return None
-    S = float(g["S"]) if g["S"] is not None else None
-    chi = float(g["chi"]) if g["chi"] is not None else None
-    if S is None:
-        S = S_from_chi(chi, delta)
-    else:
-        chi = chi_from_S(S, delta)
-    out = {"Delta": delta, "S": S, "chi": chi, "N": None, "mesh_family": None, "mesh_level": None,
-           "n_vertices": None, "tag": g["tag"]}
-    if g["N"] is not None:
-        out["N"] = int(g["N"])
-        if g["level"] is not None:
-            out.update(mesh_family="icosphere", mesh_level=int(g["level"]))
-        elif g["qlevel"] is not None:
-            out.update(mesh_family="quasiuniform", mesh_level=int(g["qlevel"]))
-        else:
-            out.update(mesh_family="quasiuniform", n_vertices=int(g["nv"]))
-    return out
 
 
 # --------------------------------------------------------------------------- catalog rows
@@ -451,6 +303,10 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
     }
 
 
+def _is_empty(v) -> bool:
+    return v is None or (isinstance(v, str) and v == "") or (isinstance(v, float) and math.isnan(v))
+
+
 def _arrow_table(rows):
     """The rows as a typed Arrow table: N, mesh_level, n_vertices int64, the other numeric columns float64 (empty
     cells null in both), text columns as strings ("" when empty), ``variables`` as the CSV's list literal."""
@@ -599,203 +455,3 @@ def read_catalog(path) -> list[dict]:
     return _read_catalog(path)[2]
 
 
-# --------------------------------------------------------------------------- selecting rows
-def _is_empty(v) -> bool:
-    return v is None or (isinstance(v, str) and v == "") or (isinstance(v, float) and math.isnan(v))
-
-
-def _wanted_values(key, value) -> list:
-    """The values one selector accepts: a scalar, or any of a list/tuple/set; numbers for numeric columns,
-    None for "empty"."""
-    values = list(value) if isinstance(value, (list, tuple, set, frozenset, np.ndarray)) else [value]
-    out = []
-    for v in values:
-        if isinstance(v, np.generic):
-            v = v.item()
-        if _is_empty(v):
-            out.append(None)
-        elif key in NUMERIC_COLUMNS:
-            try:
-                if isinstance(v, bool):
-                    raise TypeError
-                out.append(float(v))
-            except (TypeError, ValueError):
-                raise CatalogError(f"selector {key}={v!r}: {key} is a numeric column, give a number") from None
-        else:
-            out.append(str(v))
-    if not out:
-        raise CatalogError(f"selector {key}={value!r}: give at least one value")
-    return out
-
-
-def _cell_matches(key, cell, wanted) -> bool:
-    if key == "variables":
-        return any((not cell) if w is None else (w in cell) for w in wanted)
-    if key in NUMERIC_COLUMNS:
-        x = _num_or_nan(cell)
-        return any(math.isnan(x) if w is None else (not math.isnan(x) and math.isclose(x, w, rel_tol=1e-9))
-                   for w in wanted)
-    text = "" if _is_empty(cell) else str(cell)
-    return any(text == ("" if w is None else w) for w in wanted)
-
-
-def _pandas():
-    try:
-        import pandas
-    except ImportError:  # xarray depends on pandas, so this is for completeness
-        return None
-    return pandas
-
-
-def select_rows(rows, columns, where: dict, source="catalog") -> list[dict]:
-    """The rows matching every selector ``column=value`` of ``where`` (semantics: module docstring).
-
-    columns: the columns the catalog has; a selector on any other name raises CatalogError naming them.
-    Filters with pandas when it is importable, else row by row (same result).
-    """
-    unknown = [k for k in where if k not in columns]
-    if unknown:
-        old = [k for k in unknown if k in COLUMNS]
-        hint = (f"; {', '.join(old)} {'is a column' if len(old) == 1 else 'are columns'} of catalogs written by "
-                f"this version: rebuild the catalog with 'vesicle catalog'") if old else ""
-        raise CatalogError(f"unknown catalog column{'s' if len(unknown) > 1 else ''} "
-                           f"{', '.join(map(repr, unknown))} in the selection; {source} has the columns: "
-                           f"{', '.join(c for c in columns)}{hint}")
-    wanted = {k: _wanted_values(k, v) for k, v in where.items()}
-    if not rows or not wanted:
-        return list(rows)
-    pd = _pandas()
-    if pd is None:
-        return [r for r in rows if all(_cell_matches(k, r.get(k), w) for k, w in wanted.items())]
-    df = pd.DataFrame({k: [r.get(k) for r in rows] for k in wanted})
-    mask = np.ones(len(rows), dtype=bool)
-    for key, values in wanted.items():
-        col = df[key]
-        hit = np.zeros(len(rows), dtype=bool)
-        if key == "variables":
-            for w in values:
-                hit |= col.map(lambda cell, w=w: (not cell) if w is None else (w in cell)).to_numpy(dtype=bool)
-        elif key in NUMERIC_COLUMNS:
-            x = pd.to_numeric(col, errors="coerce").to_numpy(dtype=float)
-            for w in values:
-                hit |= np.isnan(x) if w is None else np.isclose(x, w, rtol=1e-9, atol=0.0)
-        else:
-            text = col.astype(object).where(col.notna(), "").map(str)
-            for w in values:
-                hit |= (text == ("" if w is None else w)).to_numpy(dtype=bool)
-        mask &= hit
-    return [r for r, keep in zip(rows, mask, strict=True) if keep]
-
-
-_TIME_SERIES_DROP_DIMS = ("m", "theta", "phi", "axis", "principal")
-# columns named in the "two datasets at one (Delta, S)" error when they tell the two apart
-_SELECT_HINT_COLUMNS = ("N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype", "kernel", "coupling",
-                        "tension_space", "backend", "tag", "chi")
-
-
-def _same(a, b) -> bool:
-    if _is_empty(a) and _is_empty(b):
-        return True
-    if isinstance(a, (int, float)) and isinstance(b, (int, float)):
-        return math.isclose(float(a), float(b), rel_tol=1e-9)
-    return a == b
-
-
-def _reduce_one(ds, time_grid, kind):
-    import xarray as xr
-
-    out = {}
-    i_star = None
-    t = np.asarray(ds["time"].values, dtype=float) if "time" in ds.coords else None
-    if t is not None and "t_star" in ds and np.isfinite(float(ds["t_star"])):
-        i_star = int(np.argmin(np.abs(t - float(ds["t_star"]))))
-    for name, var in ds.data_vars.items():
-        if any(d in var.dims for d in _TIME_SERIES_DROP_DIMS):
-            continue
-        if var.dtype.kind not in "iufb":
-            continue
-        if "time" not in var.dims:
-            out[name] = var.astype(float)
-            continue
-        if name in ("Delta_l", "Delta_tilde_l") and i_star is not None:
-            out[f"{name}_at_t_star"] = var.isel(time=i_star, drop=True).astype(float)
-            out[f"{name}_at_t_star"].attrs = dict(var.attrs, long_name=f"{name} at t_*")
-        if time_grid is not None:
-            out[name] = var.astype(float).interp(time=time_grid, kwargs={"fill_value": np.nan})
-    res = xr.Dataset(out)
-    for c in ("t_tau",):
-        if c in res.coords:
-            res = res.drop_vars(c)
-    return res
-
-
-def _common_time(datasets, time):
-    if time is not None:
-        return np.asarray(time, dtype=float)
-    axes = [np.asarray(ds["time"].values, dtype=float) for ds in datasets if "time" in ds.coords]
-    if not axes:
-        return None
-    lo = max(a.min() for a in axes)
-    hi = min(a.max() for a in axes)
-    ref = max(axes, key=len)
-    grid = ref[(ref >= lo) & (ref <= hi)]
-    if grid.size < 2:
-        grid = np.linspace(lo, hi, max(len(ref), 2)) if hi > lo else ref
-    return grid
-
-
-def open_sweep(path, kind: str = "spectra", time=None, **where):
-    """All datasets of one kind in a catalog as one xarray Dataset on the sweep dimensions (Delta, S).
-
-    path: catalog CSV, its ESM JSON, or the directory holding catalog.csv. kind: "spectra" (simulation, default)
-    or "theory" (perturbation analysis). time: common time grid for the time series (default: see module
-    docstring). where: selectors on any catalog column, e.g. ``N=64``, ``n_vertices=642``, ``scheme="projection"``,
-    ``Delta=0.116``, ``case_id="..."``, ``tag=["coarse", ""]`` (see :func:`select_rows`); an unknown column name
-    raises CatalogError listing the catalog's columns.
-    """
-    import xarray as xr
-
-    if kind not in ("spectra", "theory"):
-        raise CatalogError(f"open_sweep stacks 'spectra' or 'theory' datasets, got kind={kind!r}")
-    csv_path, columns, rows = _read_catalog(path)
-    rows = select_rows([r for r in rows if r["kind"] == kind], columns, where, source=str(csv_path))
-    if not rows:
-        raise CatalogError(f"{path}: no {kind} datasets" + (f" matching {where}" if where else ""))
-    keys = {}
-    for r in rows:
-        k = (r["Delta"], r["S"])
-        if k in keys:
-            other = keys[k]
-            differ = [c for c in _SELECT_HINT_COLUMNS if c in columns and not _same(other[c], r[c])]
-            hint = (f"select one with a column where they differ: {', '.join(f'{c}=...' for c in differ)} "
-                    "(or case_id=...)") if differ else "select one with case_id=..."
-            raise CatalogError(f"two {kind} datasets at Delta={k[0]:g}, S={k[1]:g} ({other['case_id']} and "
-                               f"{r['case_id']}); {hint}")
-        keys[k] = r
-    dss = []
-    for r in rows:
-        with xr.open_dataset(r["abspath"], engine="netcdf4") as ds:
-            dss.append(ds.load())
-    grid = _common_time(dss, time)
-    parts = []
-    for r, ds in zip(rows, dss, strict=True):
-        red = _reduce_one(ds, grid, kind)
-        meta = {"case_id": r["case_id"], "path": r["abspath"], "chi": r["chi"]}
-        for c in INTEGER_COLUMNS:
-            meta[c] = float(r[c]) if r[c] is not None else math.nan
-        for c in ("mesh_family", "scheme", "dtype", "kernel", "coupling", "tension_space", "tag"):
-            meta[c] = str(r[c] or "")
-        for k, v in meta.items():
-            red[k] = xr.DataArray(v)
-        red = red.expand_dims(Delta=[r["Delta"]], S=[r["S"]])
-        parts.append(red)
-    out = xr.merge(parts, join="outer", compat="no_conflicts", combine_attrs="drop")
-    out = out.sortby(["Delta", "S"])
-    out["Delta"].attrs.update(units="1", long_name="excess area Delta (nominal)")
-    out["S"].attrs.update(units="1", long_name="flow strength S")
-    if "time" in out.coords:
-        out["time"].attrs.update(units="1/gamma_dot", long_name="gamma_dot (t - t0), common grid (interpolated)")
-    out.attrs.update(title=f"vesicle-wrinkling sweep: {kind} stacked along (Delta, S)",
-                     catalog=str(_catalog_csv(path)), kind=kind,
-                     time_note="time series linearly interpolated onto a common grid; NaN outside a run's range")
-    return out

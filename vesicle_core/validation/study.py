@@ -64,7 +64,7 @@ def stage1_growth(spectra, l_min=6) -> float:
 
 
 def _run_row(case, traj, spec, theo):
-    from ..data.catalog import parse_case_id
+    from ..data.case_ids import parse_case_id
 
     delta_nominal = float(theo.attrs.get("delta", traj.attrs.get("delta")))
     S = float(theo.attrs.get("S", traj.attrs.get("S")))

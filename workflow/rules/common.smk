@@ -1,7 +1,7 @@
 # Helpers and the sweep table. No rules in this file (Snakemake's linter asks for functions and rules apart).
 #
 # The sweep table CASES has one row per simulation case: (Delta, S or chi, N, mesh) from config["sweep"] merged
-# with the global mesh/run sections. Ids come from vesicle_core.data.catalog (readable, built from the physical
+# with the global mesh/run sections. Ids come from vesicle_core.data.case_ids (readable, built from the physical
 # parameters only, e.g. D0.116_S553_N32_L3), so the same parameters always map to the same files and a change
 # of one S plans jobs for that point only. Meshes are keyed by mesh parameters alone and shared between flow
 # strengths; PA datasets are keyed by (Delta, S) alone.
@@ -9,9 +9,9 @@
 import os
 import re
 
-from vesicle_core.data.catalog import case_id as _case_id
-from vesicle_core.data.catalog import mesh_id as _mesh_id
-from vesicle_core.data.catalog import theory_id as _theory_id
+from vesicle_core.data.case_ids import case_id as _case_id
+from vesicle_core.data.case_ids import mesh_id as _mesh_id
+from vesicle_core.data.case_ids import theory_id as _theory_id
 from vesicle_core.model.units import S_from_chi, chi_from_S
 
 # run and mesh parameters: names and defaults from their one table (vesicle_core/model/parameters.py)
