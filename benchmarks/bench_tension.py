@@ -24,7 +24,7 @@ import scipy.linalg as sl
 from vesicle_core.geometry import mesh as M
 from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver
-from vesicle_core.solver.simulate import power_dt
+from vesicle_core.solver.step_size import power_dt
 from vesicle_core.solver.tension import TensionSolver
 
 

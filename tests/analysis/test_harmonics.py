@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from scipy.special import sph_harm_y
 
 from vesicle_core.analysis import harmonics as H
+from vesicle_core.analysis import shape as Sh
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as M
 from vesicle_core.geometry import surface as Sf
@@ -263,31 +264,31 @@ def test_fit_ellipsoid_exact(rotated):
     if rotated:
         c = np.array([0.3, -0.2, 0.1])
         v = v @ ROT.T + c
-    cen, ax, rot = H.fit_ellipsoid(v)
+    cen, ax, rot = Sh.fit_ellipsoid(v)
     assert np.allclose(ax, AXES, rtol=5e-3) and np.allclose(ax, AXES, rtol=1e-9)
     assert np.allclose(cen, c, atol=1e-9)
     R_true = ROT if rotated else np.eye(3)
     assert np.allclose(np.abs(rot.T @ R_true), np.eye(3), atol=1e-9)
     assert np.linalg.det(rot) == pytest.approx(1.0)
-    assert np.abs(H.wrinkle_amplitude(v, f, (cen, ax, rot), at="vertices")).max() < 1e-12
-    A_p = H.wrinkle_amplitude(v, f, (cen, ax, rot))
+    assert np.abs(Sh.wrinkle_amplitude(v, f, (cen, ax, rot), at="vertices")).max() < 1e-12
+    A_p = Sh.wrinkle_amplitude(v, f, (cen, ax, rot))
     assert np.abs(A_p).max() < 1e-4
-    assert math.sqrt(H.mean_square_amplitude(A_p, Sf.triangle_areas(v, f))) < 1e-5
+    assert math.sqrt(Sh.mean_square_amplitude(A_p, Sf.triangle_areas(v, f))) < 1e-5
     # flat-centroid A_p carries the facet offset ~ edge^2 / 8R
-    assert np.abs(H.wrinkle_amplitude(v, f, (cen, ax, rot), rule="centroid")).max() > 1e-4
+    assert np.abs(Sh.wrinkle_amplitude(v, f, (cen, ax, rot), rule="centroid")).max() > 1e-4
 
 
 def test_fit_ellipsoid_meshed_vesicle_and_wrinkled():
     m = M.make_vesicle(level=4, axes=(1, 0.8, 1))
     s = (4 / 3 * np.pi / Sf.enclosed_volume(np.asarray(M.icosphere(4)[0]) * [1, 0.8, 1], m.faces)) ** (1 / 3)
-    _, ax, _ = H.fit_ellipsoid(m.vertices)
+    _, ax, _ = Sh.fit_ellipsoid(m.vertices)
     assert np.allclose(ax, s * np.array([1, 0.8, 1]), rtol=5e-3)
     # wrinkles (l = 14 and 21, 1 % and 0.5 %) on a rotated ellipsoid: axes still within 0.5 % (measured 3e-5)
     u, f = M.icosphere(5)
     th, ph = np.arccos(u[:, 2]), np.arctan2(u[:, 1], u[:, 0])
     w = 0.01 * _mode(14, 6, "re", th, ph) / 0.3 + 0.005 * _mode(21, 3, "re", th, ph) / 0.3
     v = (u * (1 + w)[:, None] * AXES) @ ROT.T
-    _, ax, _ = H.fit_ellipsoid(v)
+    _, ax, _ = Sh.fit_ellipsoid(v)
     assert np.allclose(ax, AXES, rtol=5e-3)
 
 
@@ -296,11 +297,11 @@ def test_fit_ellipsoid_fallback_when_quadric_is_not_an_ellipsoid():
     xy = rng.normal(size=(400, 2))
     z = np.sqrt(0.5 + (xy**2).sum(1)) * np.sign(rng.normal(size=400))  # two-sheet hyperboloid
     pts = np.column_stack([xy, z])
-    assert H._algebraic_ellipsoid(pts) is None
-    cen, ax, rot = H.fit_ellipsoid(pts)
+    assert Sh._algebraic_ellipsoid(pts) is None
+    cen, ax, rot = Sh.fit_ellipsoid(pts)
     assert np.all(np.isfinite(ax)) and np.all(ax > 0) and np.all(np.isfinite(cen))
     with pytest.raises(ConfigError):
-        H.fit_ellipsoid(pts[:5])
+        Sh.fit_ellipsoid(pts[:5])
 
 
 def test_wrinkle_spectrum_and_mean_square_amplitude(sphere5):
@@ -309,15 +310,15 @@ def test_wrinkle_spectrum_and_mean_square_amplitude(sphere5):
     v, f, th, ph = sphere5
     eps, L = 0.01, 20
     vv = v * (1 + eps * _mode(12, 4, "re", th, ph))[:, None]
-    r = H.analyze_snapshot(vv, f, L, delta=1.0)
+    r = Sh.analyze_snapshot(vv, f, L, delta=1.0)
     assert np.allclose(r["ellipsoid"][1], 1.0, atol=1e-4)
     ut, Dt = r["u_tilde"], r["Delta_tilde"]
     assert ut[12, L + 4].real == pytest.approx(eps / 2, rel=0.01)
     assert int(np.argmax(Dt)) == 12 and Dt[12] > 1e3 * np.delete(Dt, 12).max()
     assert r["A_p_bar"] == pytest.approx(eps**2 / (8 * np.pi), rel=0.02)
-    ut2, Dt2 = H.amplitude_spectrum(vv, f, r["ellipsoid"], L)
+    ut2, Dt2 = Sh.amplitude_spectrum(vv, f, r["ellipsoid"], L)
     assert np.allclose(ut2, ut, atol=1e-12) and np.allclose(Dt2, Dt)
-    assert H.mean_square_amplitude(r["A_p"], r["areas"]) == pytest.approx(r["A_p_bar"])
+    assert Sh.mean_square_amplitude(r["A_p"], r["areas"]) == pytest.approx(r["A_p_bar"])
 
 
 def test_field_spectrum_accepts_vertex_or_triangle_values():
@@ -333,9 +334,9 @@ def test_field_spectrum_accepts_vertex_or_triangle_values():
 def test_snapshot_analysis_is_fast():
     """l_max = 32 on a level-5 mesh (20 480 triangles): well under a second (measured ~0.1 s on 2 cores)."""
     m = M.make_vesicle(level=5, axes=(1, 0.8, 1))
-    H.analyze_snapshot(m.vertices, m.faces, 8)  # warm-up (imports)
+    Sh.analyze_snapshot(m.vertices, m.faces, 8)  # warm-up (imports)
     t0 = time.perf_counter()
-    r = H.analyze_snapshot(m.vertices, m.faces, 32)
+    r = Sh.analyze_snapshot(m.vertices, m.faces, 32)
     dt = time.perf_counter() - t0
     assert dt < 1.0, f"{dt:.2f} s per snapshot"
     assert r["u"].shape == (33, 65)

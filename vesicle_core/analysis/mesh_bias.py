@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from ..geometry.surface import _as_mesh
-from .harmonics import wrinkle_amplitude
+from .shape import wrinkle_amplitude
 
 ICOSAHEDRAL_DEGREES = (6, 10, 12)
 

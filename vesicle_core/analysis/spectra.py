@@ -1,5 +1,5 @@
 """Spherical-harmonic spectra of a trajectory (Sec. V: eqs. 30-32, t_*, l_*, A_p-bar), one snapshot at a time with
-:func:`vesicle_core.analysis.harmonics.analyze_snapshot`, as an xarray Dataset.
+:func:`vesicle_core.analysis.shape.analyze_snapshot`, as an xarray Dataset.
 
 Spectra layout: see :func:`spectra_from_trajectory`. Complex coefficients are stored as real and imaginary parts;
 entries with |m| > l are NaN. The trajectory format it reads is in :mod:`vesicle_core.data.datasets`.
@@ -19,6 +19,7 @@ from ..geometry import surface as Sf
 from ..geometry import ylm as Yl
 from . import harmonics as H
 from . import mesh_bias as MB
+from . import shape
 
 __all__ = ["DEFAULT_LMAX_CAP", "spectra_from_trajectory"]
 
@@ -91,7 +92,7 @@ def _tension_stats(ft, areas):
 
 
 def _analyse_snapshots(sub, faces, v0, l_max, delta, grid, progress, **harmonics_kw):
-    """Sec. V on every snapshot of ``sub`` (:func:`harmonics.analyze_snapshot`: u_lm of eq. 30, u~_lm of eq. 32,
+    """Sec. V on every snapshot of ``sub`` (:func:`shape.analyze_snapshot`: u_lm of eq. 30, u~_lm of eq. 32,
     l_* of eq. 31 per snapshot, A_p-bar, the ellipsoid) plus the local-tension statistics and the A_p maps.
     -> dict of arrays with a leading time axis (entries with |m| > l not yet masked)."""
     nt = sub.sizes["time"]
@@ -109,7 +110,7 @@ def _analyse_snapshots(sub, faces, v0, l_max, delta, grid, progress, **harmonics
         it = tqdm(it, desc="spectra", unit="snapshot")
     for k in it:
         v = v0 if k == 0 else _vertices_at(sub, k)
-        r = H.analyze_snapshot(v, faces, l_max, delta=delta, warn=False, **harmonics_kw)
+        r = shape.analyze_snapshot(v, faces, l_max, delta=delta, warn=False, **harmonics_kw)
         out["u"][k], out["u_tilde"][k] = r["u"], r["u_tilde"]
         out["l_max_nontrivial_t"][k] = r["l_max_nontrivial"]
         out["l_star_t"][k] = r["l_star"]

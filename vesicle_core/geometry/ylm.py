@@ -9,7 +9,7 @@ Conventions
 
   They are evaluated by the standard stable three-term recurrence of the normalised associated Legendre
   functions (one pass per order m, nothing of size (n_modes x n_points) is ever stored): a whole snapshot
-  (:func:`analyze_snapshot`) takes ~0.06 s at l_max = 32 on 2*10^4 triangles, ~0.5 s at l_max = 64 on 5*10^4.
+  (:func:`shape.analyze_snapshot`) takes ~0.06 s at l_max = 32 on 2*10^4 triangles, ~0.5 s at l_max = 64 on 5*10^4.
 * Coefficient arrays have shape (..., l_max + 1, 2 l_max + 1): ``u[..., l, l_max + m]`` is u_lm; entries with
   |m| > l are 0 (datasets.py stores them as NaN). All analysed fields are real, so u_{l,-m} = (-1)^m conj(u_lm);
   only m >= 0 is computed and the rest filled by that symmetry.

@@ -14,12 +14,7 @@ Phases: from the initial ellipsoid a stretching phase in the forward flow u_inf 
 lasts ``stretch`` (gamma_dot t) or until the shape is stationary, then the flow reverses (Fig. 1)
 and the run continues to ``t_end`` (gamma_dot t after the reversal).
 
-Time step. Explicit stepping is limited by the stiffest membrane mode: the area penalty
-(dt ~ 40 h / Lambda) or bending (dt ~ 13 h^3), both measured by power iteration. ``dt_rule="power"`` (default)
-measures the largest eigenvalue |lam| of the linearised velocity operator dX/dt = M F(X) by power
-iteration at the initial shape and takes dt = safety * 2 / |lam| (explicit Euler is stable for
-|lam| dt < 2 on the real negative spectrum), capped by the formula estimate and by 0.01 / chi so the
-flow is resolved; ``dt_rule="formula"`` uses the formula only; a number fixes dt (in tau).
+Time step: :mod:`vesicle_core.solver.step_size`.
 
 Robustness. Output frames are appended to ``trajectory.partial.nc``; it becomes ``trajectory.nc``
 only when the run is complete. ``checkpoint.nc`` is rewritten atomically every ``checkpoint_every``
@@ -30,8 +25,8 @@ NumericalInstability, a diagnostic file ``failure.nc`` and no complete-looking t
 
 Layout: the run configuration is in :mod:`vesicle_core.model.run_config`, the coupled operator (:class:`IBMSolver`) in
 :mod:`vesicle_core.solver.mobility`, the run directory's files (State, checkpoint, trajectory) in
-:mod:`vesicle_core.solver.trajectory`, the schemes in :mod:`vesicle_core.solver.integrators`. This module holds the step
-estimates and the driver :func:`run`.
+:mod:`vesicle_core.solver.trajectory`, the schemes in :mod:`vesicle_core.solver.integrators`. The step estimates are in
+:mod:`vesicle_core.solver.step_size`. This module holds the driver :func:`run`.
 """
 
 from __future__ import annotations
@@ -51,6 +46,7 @@ from ..model.parameters import CHECKPOINT_WALL_S
 from ..model.run_config import RunConfig
 from . import membrane as B
 from .mobility import IBMSolver
+from .step_size import initial_dt
 from .trajectory import (
     CHECKPOINT,
     FAILURE,
@@ -61,49 +57,9 @@ from .trajectory import (
     write_failure,
 )
 
-__all__ = ["formula_dt", "power_dt", "run"]
+__all__ = ["run"]
 
 log = logging.getLogger("vesicle_core.solver.simulate")
-
-
-# --------------------------------------------------------------------------- step estimates
-def formula_dt(cfg: RunConfig, edge_mean: float, flow: bool = True) -> float:
-    """Stable-step estimate (tau) measured by power iteration on the linearised operator: area penalty
-    40 h/Lambda, bending 13 h^3 (edge ~ h) to 20 h^3 (edge ~ 2h), and 0.01/chi so the background flow moves a
-    vertex by < 1% of R per step."""
-    h = cfg.h
-    lam = (0.0 if cfg.scheme == "inextensible" else cfg.Lambda_eff) + cfg.K_area
-    c_b = 13.0 + 7.0 * min(max(edge_mean / h - 1.0, 0.0), 1.0)
-    limits = [c_b * h**3]
-    if lam > 0:
-        limits.append(40.0 * h / lam)
-    if cfg.chi > 0 and flow:
-        limits.append(0.01 / cfg.chi)
-    return min(limits)
-
-
-def power_dt(solver: IBMSolver, X, iters=30, seed=0) -> tuple[float, float]:
-    """Largest |eigenvalue| of the linearised membrane velocity at X by power iteration -> (2/|lam|, |lam|).
-
-    The Jacobian-vector product is a centred finite difference of the velocity (two solves).
-    """
-    xp = solver.xp
-    rng = np.random.default_rng(seed)
-    v = xp.asarray(rng.standard_normal(X.shape))
-    v /= float(xp.linalg.norm(v))
-    scale = 1e-7 * float(xp.abs(X).max())
-    lam = 0.0
-    for _ in range(iters):
-        Jv = (solver.membrane_velocity(X + scale * v) - solver.membrane_velocity(X - scale * v)) / (2 * scale)
-        new = float(xp.linalg.norm(Jv))
-        if new == 0 or not math.isfinite(new):
-            break
-        v = Jv / new
-        if abs(new - lam) < 1e-3 * new:
-            lam = new
-            break
-        lam = new
-    return (2.0 / lam if lam > 0 else math.inf), lam
 
 
 # --------------------------------------------------------------------------- the run
@@ -185,30 +141,6 @@ def _thermal_seed(state: State, mesh, cfg: RunConfig, solver: IBMSolver, seed_in
              l_seed)
 
 
-def _initial_dt(cfg: RunConfig, solver: IBMSolver, X, edge_mean: float) -> float:
-    """The base step (tau) of a fresh run: fixed, or from the stability estimates at the initial shape X."""
-    dt_f = formula_dt(cfg, edge_mean)
-    if isinstance(cfg.dt, str) and cfg.scheme == "inextensible":
-        # the stability limit of the bending force; the integrator adds tension, growth and flow limits
-        dt = 2.0 * formula_dt(cfg, edge_mean, flow=False)
-        if cfg.dt == "power":
-            dt_p, lam = power_dt(solver, X)
-            log.info("power iteration (bending): |lam|max = %.4g /tau -> dt_crit = %.4g tau", lam, dt_p)
-            dt = min(dt_p, dt)
-        return dt
-    if isinstance(cfg.dt, str):
-        if cfg.dt == "power":
-            dt_p, lam = power_dt(solver, X)
-            dt = cfg.dt_safety * min(dt_p, 2.0 * dt_f)
-            log.info("power iteration: |lam|max = %.4g /tau -> dt_crit = %.4g tau (formula %.4g)", lam, dt_p, dt_f)
-        else:
-            dt = cfg.dt_safety * dt_f
-        if cfg.chi > 0:
-            dt = min(dt, 0.01 / cfg.chi)
-        return dt
-    return float(cfg.dt)
-
-
 def _start(mesh, cfg: RunConfig, solver: IBMSolver, outdir: Path, seed) -> tuple[State, bool]:
     """The state to start from: the checkpoint in ``outdir`` if there is one (-> resumed = True), else the mesh
     with its base step; a run without stretching phase is seeded (``seed(state)``) and reversed at t = 0."""
@@ -221,7 +153,7 @@ def _start(mesh, cfg: RunConfig, solver: IBMSolver, outdir: Path, seed) -> tuple
         return state, True
     xp = solver.xp
     state = State(X=xp.asarray(mesh.vertices, dtype=xp.float64))
-    state.dt = _initial_dt(cfg, solver, state.X, mesh.quality()["edge_mean"])
+    state.dt = initial_dt(cfg, solver, state.X, mesh.quality()["edge_mean"])
     state.shape_prev = _shape_moments(state.X, xp)
     if cfg.stretch == 0:
         seed(state)
