@@ -197,7 +197,7 @@ def test_cost_names_resumed_runs_whose_earlier_calls_were_not_timed():
 def test_local_decay_brackets_the_fitted_exponent():
     """A least-squares slope over a window is a weighted mean of the local slopes in it, so the fitted stage-2
     exponent must lie between the local exponent's extremes over the same window."""
-    from vesicle_core.analysis.fits import case_decay
+    from vesicle_core.analysis.sweep_fits import case_decay
     from vesicle_core.validation.study import local_decay
 
     th = run_theory(0.116, 2224.0, store_modes=False)

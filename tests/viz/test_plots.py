@@ -67,7 +67,7 @@ def spectra_like(S=553.0, delta=0.116, kind="spectra", n_time=60, l_max=16, maps
 
 
 def fit_like():
-    from vesicle_core.analysis.fits import sweep_fit_dataset
+    from vesicle_core.analysis.sweep_fits import sweep_fit_dataset
 
     dss = []
     for i, S in enumerate((227.0, 553.0, 1106.5, 2224.0)):
@@ -217,7 +217,7 @@ def test_vertex_average_keeps_smooth_fields_and_removes_alternation():
 
 
 def test_plot_lstar_draws_each_delta_at_its_finest_grid(tmp_path, monkeypatch):
-    from vesicle_core.analysis.fits import sweep_fit_dataset
+    from vesicle_core.analysis.sweep_fits import sweep_fit_dataset
 
     dss = []
     for N, b in ((128, 0.20), (256, 0.36)):  # a coarse rung with a different exponent

@@ -97,7 +97,7 @@ def add_fit(sub):
 
 
 def _cmd_fit(a):
-    from ..analysis.fits import sweep_fit_dataset
+    from ..analysis.sweep_fits import sweep_fit_dataset
     from ..data.datasets import read_dataset, write_dataset
 
     check_range("--confidence", a.confidence, 0.0, 1.0, lo_open=True, hi_open=True)

@@ -160,7 +160,7 @@ def paper_decay(S):
 def local_decay(ds, kind="theory", paper=None) -> dict:
     """How far a stage-2 tension is from one power law: the local exponent a(t) = -d ln|sigma|/d ln t
     (fits.local_decay_exponent) on the dataset's own samples (raw, as the fit uses them), inside the stage-2
-    window that the fitted exponent uses (the rule and tolerances of fits.case_decay for ``kind`` 'theory' or
+    window that the fitted exponent uses (the rule and tolerances of sweep_fits.case_decay for ``kind`` 'theory' or
     'simulation'), and from the end of stage 1 to that window's end. ``paper``: the gamma_dot t at which a(t)
     first equals it there (None if it never does). {} when there is no clean stage 2."""
     from ..analysis.fits import detect_tension_stages, local_decay_exponent
@@ -199,7 +199,7 @@ def damped_pa_table(rows) -> dict:
     """The PA as each run's grid carries it (theory.grid_damping): {(S, N, kernel): {l_star, l_peak, t_star,
     decay}} for the quasi-spherical runs at L = 5 R. The damping comes from single-mode relaxation, not from
     wrinkling runs."""
-    from ..analysis.fits import case_decay
+    from ..analysis.sweep_fits import case_decay
     from ..analysis.theory import run_theory
 
     out = {}

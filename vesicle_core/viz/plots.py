@@ -256,8 +256,8 @@ def _group_key(delta):
 def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guide=True):
     """Fig. 4: l_* (``measure`` = "l_star", eq. 31, or "l_peak", the dominant mode) against S on log-log axes.
 
-    ``fit`` is the dataset of ``vesicle fit`` (vesicle_core.analysis.fits.sweep_fit_dataset): per-case points on the
-    ``case`` dimension and per-group power laws on ``group``. Groups with fewer than three points have NaN
+    ``fit`` is the dataset of ``vesicle fit`` (vesicle_core.analysis.sweep_fits.sweep_fit_dataset): per-case points
+    on the ``case`` dimension and per-group power laws on ``group``. Groups with fewer than three points have NaN
     exponents and are drawn without a line. Simulations are drawn at each Delta's finest grid only (a resolution
     study's coarser rungs, seeds and variations would otherwise pile up at the same S), with that N in the legend.
     """

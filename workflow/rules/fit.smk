@@ -1,5 +1,5 @@
 # Power laws across the sweep: l_* ~ S^b per (simulation | PA, Delta) group, and the stage-2 tension decay
-# |sigma| ~ t^-a per case, both in one file (`vesicle fit`, vesicle_core.analysis.fits.sweep_fit_dataset).
+# |sigma| ~ t^-a per case, both in one file (`vesicle fit`, vesicle_core.analysis.sweep_fits.sweep_fit_dataset).
 
 
 rule fit:
