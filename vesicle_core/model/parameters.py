@@ -144,8 +144,8 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         None,
         "float",
         "tension modulus of eq. (A5); null = the default for chi and scheme "
-        "(simulate.default_lambda: 1.5e4 chi explicit, 1.5e3 chi projection; inextensible: the area-stretch "
-        "modulus of the constraint, 5e4 chi, floor 1e6)",
+        "(vesicle_core.model.run_config.default_lambda: 1.5e4 chi explicit, 1.5e3 chi projection; inextensible: "
+        "the area-stretch modulus of the constraint, 5e4 chi, floor 1e6)",
         "kappa/R^2",
         0.0,
         1e12,
@@ -222,7 +222,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "power",
         "float",
         "time step: power iteration on the linearised operator, the stability "
-        "formula of simulate.formula_dt (area penalty 40 h/Lambda, bending 13-20 h^3), or fixed; the "
+        "formula (formula_dt: area penalty 40 h/Lambda, bending 13-20 h^3), or fixed; the "
         "inextensible scheme re-estimates it every step",
         "tau",
         0.0,
