@@ -140,7 +140,8 @@ def add_params(sub):
 
 
 def _cmd_params(a):
-    from ..model.parameters import MESH_PARAMETERS, RUN_PARAMETERS, markdown_table
+    from ..model.parameter_docs import markdown_table
+    from ..model.parameters import MESH_PARAMETERS, RUN_PARAMETERS
 
     print(markdown_table(MESH_PARAMETERS if a.mesh else RUN_PARAMETERS, with_default=True))
     return 0

@@ -1,28 +1,64 @@
 """The configuration of one IBM run: :class:`RunConfig`, the default tension modulus and the YAML loader.
 
-``RunConfig`` is a frozen dataclass generated from :data:`vesicle_core.model.parameters.RUN_PARAMETERS` (fields,
-defaults,
-ranges and help live in that one table, which also writes the workflow's schema); :class:`_RunConfigRules` adds
-the rules that tie the fields together and the derived quantities (h, Lambda_eff, rho_bar, the time scale).
+``RunConfig`` is a frozen dataclass with one field per entry of :data:`vesicle_core.model.parameters.RUN_PARAMETERS`,
+in the table's order and with its defaults (ranges, choices and help live in that one table, which also writes the
+workflow's schema; tests/model/test_run_config.py fails when the fields and the table differ). ``__post_init__``
+checks every field through the table and adds the rules that tie the fields together; the derived quantities (h,
+Lambda_eff, rho_bar, the time scale) are properties.
 
 Units are the solver's: lengths in R, mu = kappa = 1, time in tau = mu R^3/kappa; the background rate is chi.
 All durations are in gamma_dot t (= chi t/tau) when chi > 0, in tau when chi = 0.
 """
 
-from __future__ import annotations
-
-from dataclasses import asdict, field, fields, make_dataclass
+from dataclasses import asdict, dataclass, fields
 
 from ..errors import ConfigError
+from .parameters import RUN_PARAMETERS, SHARP_FLOOR
+from .resolution import DEFAULT_KERNEL
 
 
-class _RunConfigRules:
+@dataclass(frozen=True)
+class RunConfig:
     """Parameters of one IBM run, in solver units (see module docstring): the fields, defaults and ranges of
     :data:`vesicle_core.model.parameters.RUN_PARAMETERS`, checked on creation, plus the rules that tie them together."""
 
-    def __post_init__(self):
-        from .parameters import RUN_PARAMETERS
+    chi: float = 67.0
+    N: int = 32
+    L: float = 5.0
+    Re: float = 0.0
+    Lambda: float | None = None
+    K_volume: float = 1.0e7
+    K_area: float = 0.0
+    area_model: str = "voronoi"
+    kernel: str = DEFAULT_KERNEL
+    coupling: str = "kernel"
+    sharp_floor: float = SHARP_FLOOR
+    scheme: str = "projection"
+    projection_refresh: int = 10
+    stretch: float = 1.0
+    stationary_tol: float = 0.0
+    t_end: float = 1.5
+    dt: float | str = "power"  # a fixed step in tau, or "power" / "formula"
+    dt_safety: float = 0.8
+    output_every: float = 0.02
+    checkpoint_every: int = 2000
+    max_drift: float = 0.05
+    backend: str = "numpy"
+    dtype: str = "float64"
+    fft_workers: int = 1
+    cg_tol: float = 1.0e-5
+    cg_maxiter: int = 200
+    cg_precond: str = "compliance"
+    tension_space: str = "triangle"
+    tension_l_max: int | None = None
+    mesh_ale: str = "none"
+    dt_growth: float = 0.1
+    seed_spectrum: str = "mesh"
+    seed_scale: float = 1.0
+    seed: int = 0
+    store_velocity: bool = False
 
+    def __post_init__(self):
         for p in RUN_PARAMETERS:  # a frozen dataclass: store the normalised value (e.g. 128.0 -> 128)
             object.__setattr__(self, p.name, p.check(getattr(self, p.name)))
         if self.scheme == "inextensible" and self.Re > 0:
@@ -57,7 +93,7 @@ class _RunConfigRules:
         return 1.0 / self.chi if self.chi > 0 else 1.0
 
     @classmethod
-    def from_dict(cls, d: dict) -> RunConfig:
+    def from_dict(cls, d: dict) -> "RunConfig":
         names = {f.name for f in fields(cls)}
         unknown = sorted(set(d) - names)
         if unknown:
@@ -71,21 +107,6 @@ class _RunConfigRules:
         out["Lambda_eff"] = self.Lambda_eff
         out["h"] = self.h
         return out
-
-
-def _run_config_class():
-    from .parameters import RUN_PARAMETERS
-
-    types = {"float": float, "int": int, "str": str, "bool": bool}
-    spec = [(p.name, types[p.kind] | None if p.nullable else types[p.kind], field(default=p.default))
-            for p in RUN_PARAMETERS]
-    cls = make_dataclass("RunConfig", spec, bases=(_RunConfigRules,), frozen=True)
-    cls.__module__, cls.__doc__ = __name__, _RunConfigRules.__doc__  # so pickle and help() find it here
-    return cls
-
-
-RunConfig = _run_config_class()
-
 
 
 def default_lambda(chi: float, scheme: str = "explicit") -> float:
