@@ -53,7 +53,7 @@ from ..errors import ConfigError, check_choice, check_range
 from ..geometry.surface import (
     _as_mesh,
     _equivalent_radius,
-    dot,
+    dot_rows,
     face_area_vectors,
     pn_centers,
     resolvable_l_max,
@@ -145,7 +145,7 @@ def quadrature(vertices, faces, center=None, R=None, rule="pn", weights="solid_a
     if weights == "solid_angle":
         w_tri = solid_angles(v, f, c0)
     else:
-        w_tri = areas / dot(cen.T, cen.T)
+        w_tri = areas / dot_rows(cen, cen)
 
     def to_vertices(w):
         return np.bincount(f.ravel(), weights=np.repeat(w / 3.0, 3), minlength=len(v))

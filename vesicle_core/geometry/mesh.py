@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, MeshError, check_range
-from .surface import dot, enclosed_volume, face_area_vectors, surface_area
+from .surface import dot_rows, enclosed_volume, face_area_vectors, surface_area
 
 MAX_ICOSPHERE_LEVEL = 9  # level 9: 2.6 M vertices, already far beyond a 512^3 grid (edge ~ h)
 FAMILIES = ("icosphere", "quasiuniform")
@@ -222,7 +222,7 @@ def quasiuniform_sphere(n_vertices: int, seed: int = 0, lloyd_steps: int = 8) ->
 
 def _hull_faces(p, ConvexHull):
     f = ConvexHull(p).simplices.astype(np.int64)
-    flip = dot(face_area_vectors(p, f).T, p[f].mean(axis=1).T) < 0
+    flip = dot_rows(face_area_vectors(p, f), p[f].mean(axis=1)) < 0
     f[flip] = f[flip][:, [0, 2, 1]]
     return f
 

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError, check_range
-from ..geometry.surface import cross, dot
+from ..geometry.surface import corner_volume, cross, dot
 from ..xp import array_module
 
 # Internally vectors are stored component-first ("structure of arrays"): a position array is (3, V),
@@ -205,12 +205,13 @@ class AreaReference:
 
 def reference(X, topo: Topology) -> AreaReference:
     geo = geometry(X, topo)
-    return AreaReference(geo.area.copy(), float(geo.area.sum()), enclosed_volume(X, topo))
+    return AreaReference(geo.area.copy(), float(geo.area.sum()), volume(X, topo))
 
 
-def enclosed_volume(X, topo: Topology, geo: Geometry | None = None) -> float:
+def volume(X, topo: Topology, geo: Geometry | None = None) -> float:
+    """Enclosed volume of the membrane at X (or of ``geo``'s corners)."""
     P = geo.P if geo is not None else topo.gather(_components(X, topo.xp))
-    return float(dot(P[:, 0], cross(P[:, 1], P[:, 2])).sum() / 6.0)
+    return corner_volume(P[:, 0], P[:, 1], P[:, 2])
 
 
 def _volume_corner_gradient(geo: Geometry):
@@ -289,14 +290,14 @@ class Membrane:
         if self.Lambda or self.K_area:
             g += sig * geo.grad_area
         if self.K_volume:
-            V = enclosed_volume(X, self.topo, geo)
+            V = volume(X, self.topo, geo)
             g += self.K_volume * (V - self.ref.volume) / self.ref.volume * _volume_corner_gradient(geo)
         return -self.topo.scatter(g).T, geo
 
     def energies(self, X, geo: Geometry | None = None) -> dict:
         geo = geo or geometry(X, self.topo, self.area_model)
         A = float(geo.area.sum())
-        V = enclosed_volume(X, self.topo, geo)
+        V = volume(X, self.topo, geo)
         out = {
             "bending_energy": bending_energy(X, self.topo, self.kappa, geo, self.area_model),
             "tension_energy": tension_energy(geo, self.ref, self.Lambda),

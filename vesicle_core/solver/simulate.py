@@ -345,7 +345,7 @@ class _Run:
         state, cfg, mem, A0, V0 = self.state, self.cfg, self.mem, self.A0, self.V0
         sig_l = self.integ.face_tension(state, geo)
         A = float(geo.area.sum())
-        V = B.enclosed_volume(X, mem.topo, geo)
+        V = B.volume(X, mem.topo, geo)
         sig = B.global_tension(geo, sig_l) + (cfg.K_area * (A - A0) / A0 if cfg.K_area else 0.0)
         flow_sign = 1.0 if state.phase == "stretch" else -1.0
         sc = {"t_tau": state.t, "tension": sig, "area": A, "volume": V, "area_drift": A / A0 - 1,

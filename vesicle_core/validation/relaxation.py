@@ -29,7 +29,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import ConfigError, check_range
-from ..geometry.surface import dot
+from ..geometry.surface import dot_rows
 from ..model.resolution import DEFAULT_KERNEL
 
 
@@ -126,7 +126,7 @@ def mode_rate(l, N, n_vertices, *, L=5.0, membrane="clean", sigma0=0.0, eps=1e-3
     from ..solver.tension import dual_areas
 
     w = solver.be.asnumpy(dual_areas(B.geometry(Xd, solver.membrane.topo), solver.membrane.topo))
-    un = dot(U.T, n.T)
+    un = dot_rows(U, n)
     Y = _y_l0(l, cos_t)
     amp = float(np.sum(w * un * Y) / np.sum(w * Y * Y))
     return RateResult(int(l), -amp / eps, float(theory_rate(l, membrane, sigma0)))
