@@ -160,13 +160,13 @@ def test_inextensible_run_holds_every_triangle(inext_run):
     assert ds.tension.values[-1] < ds.tension.sel(time=0.0, method="nearest")
 
 
-@pytest.mark.parametrize("space", ["triangle", "harmonic"])
-def test_inextensible_resume_is_identical(tmp_path, space):
+@pytest.mark.parametrize(("space", "kT"), [("triangle", 0.0), ("harmonic", 0.0), ("harmonic", 0.0405)])
+def test_inextensible_resume_is_identical(tmp_path, space, kT):
     """A run stopped after 10 steps and resumed from its checkpoint (every 7 steps) gives the uninterrupted run's
     frames bit for bit. The harmonic tension checkpoints its measured diagonal rho_l and its age, and each
-    measurement's draw is seeded by its step."""
+    measurement's draw is seeded by its step; the thermal noise and its drift draw from (noise_seed, step) only."""
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    cfg = _run_cfg(checkpoint_every=7, tension_space=space)
+    cfg = _run_cfg(checkpoint_every=7, tension_space=space, kT=kT, noise_seed=5)
     ref = xr.open_dataset(run(m, cfg, tmp_path / "a", progress=False)).load()
     assert run(m, cfg, tmp_path / "b", progress=False, stop_after_steps=10) is None
     assert (tmp_path / "b" / CHECKPOINT).exists() and not (tmp_path / "b" / TRAJECTORY).exists()

@@ -369,6 +369,26 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("seed_scale", 1.0, "float", "thermal seed: factor on k_B T (the variance of every mode)", "", 0.0, 1e6),
     Parameter("seed", 0, "int", "thermal seed: random draw (the PA's seed)", "", 0, 2**31 - 1),
     Parameter(
+        "kT",
+        0.0,
+        "float",
+        "thermal noise on throughout the run: k_B T / kappa of the fluctuating Stokes velocity (0: deterministic; "
+        "0.0405 at 293 K and kappa = 1e-19 J); inextensible scheme only (fluctuations.py)",
+        "kappa",
+        0.0,
+        1e3,
+    ),
+    Parameter(
+        "noise_seed",
+        0,
+        "int",
+        "thermal noise: key of its counter-based generator (the numbers of a step depend on the key and the step "
+        "only: the same on NumPy and CuPy and across a resume)",
+        "",
+        0,
+        2**31 - 1,
+    ),
+    Parameter(
         "store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, node_uz)"
     ),
 )

@@ -56,6 +56,8 @@ class RunConfig:
     seed_spectrum: str = "mesh"
     seed_scale: float = 1.0
     seed: int = 0
+    kT: float = 0.0
+    noise_seed: int = 0
     store_velocity: bool = False
 
     def __post_init__(self):
@@ -71,6 +73,9 @@ class RunConfig:
                               "every triangle's area itself)")
         if self.chi == 0 and self.stretch > 0:
             raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
+        if self.kT > 0 and self.scheme != "inextensible":
+            raise ConfigError(f"kT > 0 needs scheme 'inextensible' (the noise enters its tension solve); got scheme "
+                              f"'{self.scheme}' (or set kT = 0)")
         if self.seed_spectrum != "mesh" and self.stationary_tol > 0:
             raise ConfigError("seed_spectrum 'thermal' needs a fixed stretch (stationary_tol = 0): the seed goes on "
                               "the shape before the frame at the reversal")

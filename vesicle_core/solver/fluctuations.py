@@ -201,4 +201,72 @@ def rfd_drift(mobility, X, kT, seed, step, delta=1e-4, stream=1):
     return kT / delta * (out[0] - out[1])
 
 
-__all__ = ["ThermalNoise", "noise_generator", "mobility_matrix", "mobility_divergence", "rfd_drift"]
+class ConstrainedMobility:
+    """N(X): the velocity that forces W give under the run's tension constraint, U = M (W - D^T sigma) with sigma
+    such that the tension space sees no area change (the tension solve with no background flow and no area error).
+
+    Same ``prepare(X)`` / ``apply(W)`` / ``backend`` interface as :class:`~vesicle_core.solver.mobility.IBMMobility`,
+    so :func:`rfd_drift` and :func:`mobility_divergence` measure kT div_X N, the drift of the constrained dynamics.
+    ``tension``: the run's TensionSolver or HarmonicTensionSolver; ``geometry``: X -> membrane Geometry.
+    """
+
+    def __init__(self, tension, mobility, geometry, harmonic: bool):
+        self.tension = tension
+        self.mobility = mobility
+        self.backend = mobility.backend
+        self.geometry = geometry
+        self.harmonic = harmonic
+        self._geo = None
+        self.dt = 1.0  # the step the constraint's compliance is scaled with (set to the run's step before use)
+        self.step = 0  # the draw of a harmonic solver's rho_l measurement, when one falls due
+
+    def prepare(self, X):
+        self.mobility.prepare(X)
+        self._geo = self.geometry(X)
+
+    def apply(self, W):
+        geo, xp = self._geo, self.backend.xp
+        zero_area = xp.zeros(geo.area.shape[0], dtype=geo.area.dtype)
+        if self.harmonic:
+            c0 = np.zeros(self.tension.space.K)
+            return self.tension.solve(geo, W, 0.0, zero_area, self.dt, c0, seed=self.step)[2]
+        return self.tension.solve(geo, W, 0.0, zero_area, self.dt, zero_area)[1]
+
+
+class ThermalVelocity:
+    """The thermal part of an inextensible step's velocity: the fluctuating Stokes noise interpolated at X
+    (covariance 2 kT M / dt) plus the Ito drift kT div_X N of the constrained mobility by random finite differences
+    (:func:`rfd_drift`, two constrained solves). Both go into the tension solve as a known velocity, beside the
+    background flow, so the constraint projects them: the noise the membrane sees has the constrained mobility's
+    covariance 2 kT N / dt (P M P^T = N for the M-orthogonal projection P = I - M D^T (D M D^T)^-1 D).
+
+    Euler-Maruyama with this drift is weakly first-order consistent for the Ito equation
+    dX = (N F + kT div N) dt + sqrt(2 kT) N^{1/2} dW (Delong et al. 2014). The constraint is the tension space's
+    linearised local one, solved exactly up to the CG tolerance (a rigid constraint, not the stiff-spring limit:
+    Hinch 1994 shows the two sample different shape measures).
+    """
+
+    def __init__(self, stokes, constrained: ConstrainedMobility, kT, seed, delta=None):
+        self.noise = ThermalNoise(stokes, kT, seed)
+        self.constrained = constrained
+        self.kT = self.noise.kT
+        self.seed = self.noise.seed
+        # small against the grid spacing, large against round-off of float32 positions (~1e-7 R)
+        self.delta = float(delta) if delta is not None else 1e-3 * stokes.grid.h
+        self.stokes_solves = 0  # those of the drift's constrained solves (the noise itself is one FFT round trip)
+
+    def __call__(self, X, dt, step):
+        """(V, 3) backend array: noise velocity + drift at X for the step ``step`` of length dt. Leaves the mobility
+        prepared at X."""
+        be = self.constrained.backend
+        self.constrained.dt, self.constrained.step = dt, step
+        n0 = self.constrained.mobility.n_products
+        drift = rfd_drift(self.constrained, be.asnumpy(X), self.kT, self.seed, step, delta=self.delta)
+        self.stokes_solves += self.constrained.mobility.n_products - n0
+        self.constrained.mobility.prepare(X)
+        u = self.constrained.mobility.coupler.interpolate(self.noise.velocity(dt, step))
+        return u + be.asarray(drift, dtype=u.dtype)
+
+
+__all__ = ["ConstrainedMobility", "ThermalNoise", "ThermalVelocity", "noise_generator", "mobility_matrix",
+           "mobility_divergence", "rfd_drift"]

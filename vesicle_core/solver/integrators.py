@@ -161,6 +161,18 @@ class Inextensible(Integrator):
                                          maxiter=cfg.cg_maxiter, cells="face", local=local)
         self.l_grid = math.ceil(math.pi / cfg.h)  # the shortest wave the grid can carry, in R
         self.iterations = []
+        self.thermal = self._thermal() if cfg.kT > 0 else None
+
+    def _thermal(self):
+        from . import membrane as B
+        from .fluctuations import ConstrainedMobility, ThermalVelocity
+
+        mem = self.solver.membrane
+        def geometry(X):
+            return B.geometry(X, mem.topo, mem.area_model)
+
+        constrained = ConstrainedMobility(self.tension, self.mobility, geometry, harmonic=self.space is not None)
+        return ThermalVelocity(self.solver.stokes, constrained, self.cfg.kT, self.cfg.noise_seed)
 
     def _harmonic_solver(self):
         from .tension_harmonic import HarmonicSpace, HarmonicTensionSolver
@@ -214,12 +226,13 @@ class Inextensible(Integrator):
             h_a, h_b = state.dt_steps
             guess = state.sigma + (h_b / h_a) * (state.sigma - state.sigma_prev)
         u_inf = background_velocity(X, rate) if cfg.chi > 0 else 0.0
+        if self.thermal is not None:  # noise and drift: known velocities the constraint projects, like the flow's
+            self._restore_rho(state)
+            u_inf = u_inf + self.thermal(X, dt, state.step)
         if self.space is None:
             sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt, guess)
         else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
-            ts = self.tension
-            if ts.rho is None and state.tension_rho is not None:  # resumed: the measurement of the first call
-                ts.rho, ts._uses = np.asarray(state.tension_rho, dtype=float), int(state.tension_rho_age)
+            ts = self._restore_rho(state)
             _, sigma, U = ts.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt,
                                    self.space.fit(self.solver.be.asnumpy(guess)), seed=state.step)
             state.tension_rho, state.tension_rho_age = ts.rho, ts._uses
@@ -230,6 +243,13 @@ class Inextensible(Integrator):
         if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
             return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area)
         return U * dt
+
+    def _restore_rho(self, state):
+        """The harmonic solver, with its rho_l measurement of the first call when the run was resumed."""
+        ts = self.tension
+        if self.space is not None and ts.rho is None and state.tension_rho is not None:
+            ts.rho, ts._uses = np.asarray(state.tension_rho, dtype=float), int(state.tension_rho_age)
+        return ts
 
     def face_tension(self, state, geo):
         if state.sigma is None:
@@ -245,7 +265,14 @@ class Inextensible(Integrator):
                 # one for the warm-start velocity, one per iteration (+ the harmonic space's rho_l measurements)
                 "stokes_solves": int(it.size + it.sum() + getattr(self.tension, "extra_solves", 0)),
                 "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0)),  # local -> compliance repeats (this call)
-                **self._precond_stats()}
+                **self._precond_stats(), **self._thermal_stats()}
+
+    def _thermal_stats(self) -> dict:
+        if self.thermal is None:
+            return {}
+        # this call's: the drift's constrained solves (two per step) and the noise fields drawn (one per step)
+        return {"thermal_stokes_solves": int(self.thermal.stokes_solves),
+                "thermal_noise_fields": int(self.thermal.noise.n_draws)}
 
     def _precond_stats(self) -> dict:
         if self.space is not None:

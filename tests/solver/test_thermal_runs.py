@@ -1,0 +1,138 @@
+"""Thermal noise in an inextensible run (run parameters kT, noise_seed; fluctuations.ThermalVelocity): the
+constraint projects the noise, and the projected noise has the constrained mobility's covariance 2 kT N / dt
+(checked by sampling, with a counter-test that the raw noise fails); bad input; a short noisy run."""
+
+import numpy as np
+import pytest
+import xarray as xr
+from scipy import stats
+
+from vesicle_core.errors import ConfigError
+from vesicle_core.geometry import mesh as Mm
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.integrators import Inextensible
+from vesicle_core.solver.mobility import IBMSolver
+from vesicle_core.solver.simulate import run
+from vesicle_core.solver.tension import face_D
+
+KT, DT = 0.0405, 1e-3
+
+
+@pytest.fixture(scope="module")
+def thermal():
+    """A 42-vertex vesicle on a 16^3 grid with the harmonic tension (l_t = 3) and a stiff compliance (Lambda 1e12),
+    so that the constraint is rigid to 1e-6 and the projection exact to far below sampling accuracy."""
+    m = Mm.make_vesicle("icosphere", level=1, axes=(1.0, 0.9, 1.0))
+    cfg = RunConfig(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space="harmonic", tension_l_max=3,
+                    Lambda=1e12, cg_tol=1e-12, cg_maxiter=500, kT=KT, noise_seed=11)
+    s = IBMSolver(m.faces, m.vertices, cfg)
+    integ = Inextensible(s, 1e-3, X0=m.vertices)
+    X = s.xp.asarray(m.vertices)
+    _, geo = s.forces(X)
+    return s, integ, X, geo
+
+
+def _projected(integ, geo, u):
+    """The velocity the tension solve makes of a known velocity u with no forces and no area error."""
+    c = integ.thermal.constrained
+    c.dt, c.step = DT, 0
+    zero = np.zeros(geo.area.shape[0])
+    return integ.tension.solve(geo, 0.0 * u, u, zero, DT, np.zeros(integ.space.K), seed=0)[2]
+
+
+def _constrained_matrix(integ, X):
+    c = integ.thermal.constrained
+    c.dt, c.step = DT, 0
+    c.prepare(X)
+    n = X.shape[0]
+    cols = []
+    for j in range(3 * n):
+        W = np.zeros(3 * n)
+        W[j] = 1.0
+        cols.append(np.asarray(c.apply(W.reshape(n, 3))).reshape(-1))
+    return np.array(cols).T
+
+
+def _noise_sample(integ, X, n_draws, project):
+    th, geo = integ.thermal, integ.thermal.constrained.geometry(X)
+    out = []
+    for k in range(n_draws):
+        integ.mobility.prepare(X)
+        u = integ.mobility.coupler.interpolate(th.noise.velocity(DT, k))
+        out.append(np.asarray(_projected(integ, geo, u) if project else u).reshape(-1))
+    return np.array(out)
+
+
+def _whitened_stats(sample, N):
+    """Whiten by 2 kT N / dt in its range; (max covariance deviation in sampling sigmas, max |mean| in sigmas,
+    KS p-value of normality, the share of the sample's power outside the range of N)."""
+    lam, V = np.linalg.eigh(0.5 * (N + N.T))
+    keep = lam > 1e-6 * lam.max()
+    Vr = V[:, keep]
+    y = sample @ Vr / np.sqrt(2 * KT * lam[keep] / DT)
+    n = y.shape[0]
+    C = y.T @ y / n
+    dev = np.abs(C - np.eye(C.shape[0])).max() / np.sqrt(2.0 / n)
+    mean = np.abs(y.mean(0)).max() * np.sqrt(n)
+    p = stats.kstest(y.ravel(), "norm").pvalue
+    null = ((sample @ V[:, ~keep]) ** 2).sum() / (sample**2).sum()
+    return dev, mean, p, null
+
+
+def _passes(st):
+    dev, mean, p, null = st
+    return dev < 5.5 and mean < 5.0 and p > 1e-3 and null < 1e-6
+
+
+def test_the_constraint_removes_the_area_changing_part_of_the_noise(thermal):
+    s, integ, X, geo = thermal
+    integ.mobility.prepare(X)
+    u = integ.mobility.coupler.interpolate(integ.thermal.noise.velocity(DT, 3))
+    U = _projected(integ, geo, u)
+    B = integ.space.B
+    before = np.linalg.norm(B.T @ face_D(u, geo, s.membrane.topo))
+    after = np.linalg.norm(B.T @ face_D(U, geo, s.membrane.topo))
+    assert before > 0 and after < 1e-6 * before
+
+
+@pytest.mark.slow  # ~40 s: 1,500 tension solves at a tolerance of 1e-12
+def test_projected_noise_has_the_constrained_mobility_covariance(thermal):
+    """Fluctuation-dissipation under the constraint: P u has covariance 2 kT N / dt, N the constrained mobility
+    measured column by column through the same tension solve. The raw noise (covariance 2 kT M / dt) fails the
+    same statistics: it has power where N has none."""
+    s, integ, X, geo = thermal
+    N = _constrained_matrix(integ, X)
+    assert np.abs(N - N.T).max() < 1e-6 * np.abs(N).max()  # the constrained mobility is symmetric
+    st = _whitened_stats(_noise_sample(integ, X, 1500, project=True), N)
+    assert _passes(st), st
+    raw = _whitened_stats(_noise_sample(integ, X, 300, project=False), N)
+    assert not _passes(raw), raw
+
+
+@pytest.mark.parametrize(("kw", "match"), [
+    ({"kT": -0.1}, r"kT must lie in \[0.0, 1000.0\]"),
+    ({"noise_seed": 1.5}, "noise_seed must be an integer"),
+    ({"noise_seed": -1}, r"noise_seed must lie in \[0, 2147483647\]"),
+    ({"kT": 0.04, "scheme": "projection"}, "kT > 0 needs scheme 'inextensible'"),
+])
+def test_bad_thermal_input_names_the_field(kw, match):
+    with pytest.raises(ConfigError, match=match):
+        RunConfig(**kw)
+
+
+def test_a_noisy_run_completes_holds_area_and_volume_and_differs_by_seed(tmp_path):
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    base = {"chi": 50.0, "N": 16, "scheme": "inextensible", "tension_space": "harmonic", "stretch": 0.1,
+            "t_end": 0.1, "output_every": 0.05, "kT": KT}
+    out = {}
+    for seed in (1, 2):
+        out[seed] = xr.open_dataset(run(m, RunConfig(**base, noise_seed=seed), tmp_path / str(seed),
+                                        progress=False)).load()
+    cold = xr.open_dataset(run(m, RunConfig(**{**base, "kT": 0.0}), tmp_path / "cold", progress=False)).load()
+    for ds in out.values():
+        assert ds.attrs["kT"] == KT
+        assert np.abs(ds.area_drift.values).max() < 5e-3 and np.abs(ds.volume_drift.values).max() < 5e-3
+    # the two seeds and the deterministic run end apart by more than round-off, by less than the mesh spacing
+    d12 = np.abs(out[1].node_x.values[-1] - out[2].node_x.values[-1]).max()
+    d1c = np.abs(out[1].node_x.values[-1] - cold.node_x.values[-1]).max()
+    assert 1e-6 < d12 < 0.1 and 1e-6 < d1c < 0.1
