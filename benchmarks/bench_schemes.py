@@ -34,6 +34,7 @@ import yaml
 
 from vesicle_core.analysis.spectra import spectra_from_trajectory
 from vesicle_core.geometry import mesh as M
+from vesicle_core.model.parameters import SCHEMES
 from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.simulate import run
 
@@ -109,7 +110,7 @@ def main():
                     help="excess area of the mesh (default: the 1:0.8:1 ellipsoid, Delta = 0.116)")
     ap.add_argument("--stretch", type=float, default=1.0)
     ap.add_argument("--t-end", type=float, default=1.0)
-    ap.add_argument("--schemes", nargs="+", default=["explicit", "projection", "inextensible"])
+    ap.add_argument("--schemes", nargs="+", default=list(SCHEMES))
     ap.add_argument("--lambda-explicit", type=float, default=None)
     ap.add_argument("--fft-workers", type=int, default=1)
     ap.add_argument("--dtype", default="float64", choices=("float64", "float32"), help="grid fields and FFTs")

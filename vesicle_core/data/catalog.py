@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import VesicleError
+from ..model.parameters import RUN
 from ..model.resolution import DEFAULT_KERNEL  # also the kernel of files written before RunConfig.kernel existed
 from .case_ids import parse_case_id
 
@@ -260,6 +261,11 @@ def _fmt_cell(v):
     return str(v)
 
 
+def _choices(name: str) -> str:
+    """A run parameter's allowed values as the column descriptions list them, from the parameter table."""
+    return " | ".join(RUN[name].choices)
+
+
 def esm_collection(catalog_file: str, description: str | None = None, cid: str = "vesicle-wrinkling") -> dict:
     """ESM-collection (esmcat 0.1.0) description of a catalog table (``catalog_file``: Parquet or CSV)."""
     described = {
@@ -272,11 +278,12 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
         "mesh_family": "icosphere | quasiuniform",
         "mesh_level": "icosphere subdivision level",
         "n_vertices": "number of mesh vertices",
-        "scheme": "time-stepping scheme of the run (projection | explicit | inextensible)",
-        "dtype": "floating-point precision of the run's grid fields (float64 | float32)",
-        "kernel": "regularised delta function of the run (peskin4 | roma3 | bao6)",
-        "coupling": "fluid-membrane coupling of the run (kernel | sharp)",
-        "tension_space": "tension space of the inextensible scheme (triangle | harmonic; triangle for the others)",
+        "scheme": f"time-stepping scheme of the run ({_choices('scheme')})",
+        "dtype": f"floating-point precision of the run's grid fields ({_choices('dtype')})",
+        "kernel": f"regularised delta function of the run ({_choices('kernel')})",
+        "coupling": f"fluid-membrane coupling of the run ({_choices('coupling')})",
+        "tension_space": f"tension space of the inextensible scheme ({_choices('tension_space')}; triangle for the "
+                         "others)",
         "backend": "array backend of the run (numpy | cupy)",
         "tag": "tag of the case (its sweep group), empty when untagged",
         "path": "file location relative to the directory of this catalog",
