@@ -134,6 +134,32 @@ def test_box_tension_finding_follows_the_numbers():
     assert "-8.3%" in text and "larger box is closer" in text
     b.update(tension_large=1600.0)
     assert "is not closer" in render_section("box_tension", b)
+    # "far more than the shape" only when the tension's change is ten times the shape difference at the reversal
+    b.update(tension_large=1416.0, reversal_shape_error=1.05e-3)
+    assert "far more than the shape at the reversal (1.0e-03)" in render_section("box_tension", b)
+    b.update(reversal_shape_error=0.05)
+    text = render_section("box_tension", b)
+    assert "far more" not in text and "against a shape difference of 5.0e-02" in text
+
+
+def _discussion(**d):
+    from vesicle_core.validation.report import _environment
+
+    base = {"pairs": [], "summary": {}, "relaxation": None, "decay": [], "moves": [], "moves_N": [],
+            "biggest_move": None, "growth": None}
+    return _environment().get_template("discussion.md.j2").render(discussion={**base, **d})
+
+
+def test_discussion_sentences_follow_the_numbers():
+    assert "Wrinkles grow in every quasi-spherical case: Delta_l (l >= 6) changes by 4.0 to 5.1" in _discussion(
+        growth=(4.0, 5.1))
+    assert "Wrinkles do not grow in every quasi-spherical case" in _discussion(growth=(-0.3, 5.1))
+    damped = _discussion(relaxation={"N": 256, "ratio": 0.74, "l_res": 16, "damped": True})
+    assert "the kernel still damps" in damped
+    resolved = _discussion(relaxation={"N": 128, "ratio": 0.97, "l_res": 25, "damped": False})
+    assert "still damps" not in resolved and "within 5% of theory" in resolved
+    moves = _discussion(moves=[("mesh-fine", 0.03)], moves_N=[96], biggest_move=("mesh-fine", 0.03))
+    assert "One change at a time at N = 96: mesh-fine +3.0%" in moves
 
 
 def test_cost_finding_follows_the_numbers():

@@ -255,7 +255,11 @@ def box_tension(b) -> dict | None:
     if not (math.isfinite(s) and math.isfinite(g)):
         return None
     has_pa = math.isfinite(pa)
-    return {"b": b, "small": s, "large": g, "unbounded": inf, "pa": pa, "has_pa": has_pa, "change": g / s - 1,
+    shape = b.get("reversal_shape_error", math.nan)
+    # "far more": the tension's relative change is ten times the relative shape difference at the same frame
+    dominates = abs(g / s - 1) > 10 * shape if math.isfinite(shape) else None
+    return {"b": b, "shape": shape, "tension_dominates": dominates,
+            "small": s, "large": g, "unbounded": inf, "pa": pa, "has_pa": has_pa, "change": g / s - 1,
             "small_vs_pa": s / pa - 1 if has_pa else None, "large_vs_pa": g / pa - 1 if has_pa else None,
             "unbounded_vs_pa": inf / pa - 1 if has_pa else None,
             "closer": abs(g - pa) < abs(s - pa) if has_pa else None}
@@ -332,7 +336,9 @@ def discussion(data, summary=None) -> dict | None:
     if rel:
         t = max(rel, key=lambda t: t["N"])
         if t["ratios"].get(25) is not None:
-            out["relaxation"] = {"N": t["N"], "ratio": t["ratios"][25], "l_res": t["l_res"]}
+            # damped: slower than theory by more than the 5% that defines l_res
+            out["relaxation"] = {"N": t["N"], "ratio": t["ratios"][25], "l_res": t["l_res"],
+                                 "damped": t["ratios"][25] < 0.95}
     f = data["fits"].get("fine")
     if summary and f is not None:
         out["decay"] = _decay_trends(summary, f, data.get("pa_local_decay", {}))
@@ -340,6 +346,7 @@ def discussion(data, summary=None) -> dict | None:
     out["moves"] = [(r["tag"], r["sim_l_star"] / base[(r["S"], r["N"])]["sim_l_star"] - 1)
                     for r in data["rows"] if r["group"] == "variation" and (r["S"], r["N"]) in base]
     out["biggest_move"] = max(out["moves"], key=lambda m: abs(m[1])) if out["moves"] else None
+    out["moves_N"] = sorted({r["N"] for r in data["rows"] if r["group"] == "variation" and (r["S"], r["N"]) in base})
     return out
 
 
