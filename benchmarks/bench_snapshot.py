@@ -11,23 +11,14 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import time  # noqa: E402
-
-import numpy as np  # noqa: E402
+import sys  # noqa: E402
 
 from vesicle_core.analysis import shape as Sh  # noqa: E402
 from vesicle_core.geometry import mesh as M  # noqa: E402
 from vesicle_core.geometry import surface as Sf  # noqa: E402
 
-
-def median_time(fn, repeats):
-    fn()
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return float(np.median(ts))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_forces import median_time  # noqa: E402
 
 
 def main(argv=None):
