@@ -1,5 +1,8 @@
 """The few exception types a user of vesicle_core sees."""
 
+import math
+import numbers
+
 
 class VesicleError(Exception):
     """Base class of every error raised on purpose by vesicle_core."""
@@ -69,3 +72,25 @@ def check_choice(name, value, allowed):
     if value not in allowed:
         raise ConfigError(f"{name} must be one of {', '.join(map(repr, allowed))}, got {value!r}")
     return value
+
+
+#: the largest counter / seed a Philox key or numpy generator takes
+_U64 = 2**64 - 1
+
+
+def check_counter(name, value):
+    """A non-negative integer below 2^64 (numbers.Integral, or a float with an integer value), else ConfigError naming
+    ``name``. Strings and booleans are refused even when they look like integers."""
+    msg = f"{name} must be an integer in [0, {_U64}], got {value!r}"
+    if isinstance(value, bool) or type(value).__name__ == "bool_" or not isinstance(value, numbers.Real):
+        raise ConfigError(msg)
+    if isinstance(value, numbers.Integral):
+        v = int(value)
+    else:
+        f = float(value)
+        if not math.isfinite(f) or not f.is_integer():
+            raise ConfigError(msg)
+        v = int(f)
+    if not 0 <= v <= _U64:
+        raise ConfigError(msg)
+    return v

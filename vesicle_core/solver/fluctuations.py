@@ -49,30 +49,10 @@ uses. docs/thermal.md reports the drift's size for this kernel and grid: it does
 
 from __future__ import annotations
 
-import numbers
-
 import numpy as np
 
-from ..errors import ConfigError, check_range
-
-_U64 = 2**64 - 1
-
-
-def _check_counter(name, value):
-    """A non-negative integer below 2^64 (numbers.Integral, or a float with an integer value), else ConfigError."""
-    msg = f"{name} must be an integer in [0, {_U64}], got {value!r}"
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise ConfigError(msg)
-    if isinstance(value, numbers.Integral):
-        v = int(value)
-    else:
-        f = float(value)
-        if not np.isfinite(f) or not f.is_integer():
-            raise ConfigError(msg)
-        v = int(f)
-    if not 0 <= v <= _U64:
-        raise ConfigError(msg)
-    return v
+from ..errors import check_counter as _check_counter
+from ..errors import check_range
 
 
 def noise_generator(seed, step, stream=0):

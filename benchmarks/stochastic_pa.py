@@ -1,0 +1,95 @@
+"""Stochastic PA report: l_*, l_peak and t_* over seeds, against the deterministic PA, for kT, l_max, grid, step.
+
+    python benchmarks/stochastic_pa.py [--seeds 16] [--steps 4000] > numbers.md
+
+Delta = 0.116, S = 553 and 2224 (the paper's quasi-spherical pair). Rows (each over the same ``--seeds`` seeds):
+
+* ``PA`` -- theory.solve, the deterministic PA from the literal thermal start (the project's default PA);
+* ``start`` -- the stochastic PA's equilibrium start, deterministic after the reversal (noise="start");
+* ``on`` -- noise on throughout, at kT/kappa = 0.00405, 0.0405, 0.405 (x0.1, x1, x10);
+* the truncation l_max (every mode fluctuates, so l_max is an input: 20, 30, default, 1.5 x default);
+* the grid: the rates damped by theory.grid_damping for h = 5/128 (128^3 in a 5 R box), kernel and sharp coupling;
+* the step: 2 x ``--steps``.
+
+Then the equilibrium spectrum of the free vesicle (S = 0, Delta = 0.04, l_max = 16, 16 seeds) at two steps:
+measured <|u_lm|^2> over kT / (kappa Delta [l(l+1) + <sigma>]).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from vesicle_core.analysis import stochastic_pa as SP
+from vesicle_core.analysis import theory as T
+from vesicle_core.model.modes import default_l_max
+
+KT = 0.0405
+DELTA = 0.116
+
+
+def _row(label, run, seconds):
+    s = run.summary()
+    return (f"| {run.S:g} | {label} | {run.kT_over_kappa:g} | {run.l_max} | {s['l_star']:.2f} +- {s['l_star_sd']:.2f} "
+            f"| {s['l_peak']:.1f} +- {s['l_peak_sd']:.1f} | {s['t_star']:.4f} +- {s['t_star_sd']:.4f} "
+            f"| {np.min(run.l_star):.2f} - {np.max(run.l_star):.2f} | {seconds:.0f} |")
+
+
+def _timed(**kw):
+    t0 = time.perf_counter()
+    run = SP.simulate(DELTA, **kw)
+    return run, time.perf_counter() - t0
+
+
+def wrinkling(seeds, steps):
+    print("| S | run | kT/kappa | l_max | l_* (eq. 31) mean +- sd | l_peak mean +- sd | t_* mean +- sd | l_* range "
+          "| s |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for S in (553.0, 2224.0):
+        L = default_l_max(S)
+        ref = T.solve(DELTA, S)
+        print(f"| {S:g} | PA (deterministic, literal thermal start) | {KT:g} | {ref.l_max} | {ref.l_star:.2f} "
+              f"| {ref.l_peak:.0f} | {ref.t_star:.4f} | - | - |", flush=True)
+        rows = [("start (equilibrium start, no noise after)", dict(noise="start"))]
+        rows += [("on", dict(kT_over_kappa=k)) for k in (KT / 10, KT, KT * 10)]
+        rows += [("on, l_max", dict(l_max=lm)) for lm in (20, 30, int(1.5 * L))]
+        rows += [(f"on, grid 128^3 {c}", dict(grid_h=5 / 128, coupling=c)) for c in ("kernel", "sharp")]
+        rows += [("on, 2 x steps", dict(n_steps=2 * steps))]
+        for label, kw in rows:
+            kw = {"S": S, "seeds": seeds, "n_steps": steps, "kT_over_kappa": KT, **kw}
+            run, sec = _timed(**kw)
+            print(_row(label, run, sec), flush=True)
+            if label == "on" and run.kT_over_kappa == KT:
+                print(f"<!-- S={S:g} l_star per seed: {np.round(run.l_star, 2).tolist()} -->", flush=True)
+
+
+def equilibrium_table():
+    print()
+    print("| ds | <sigma> | mean-field sigma | sd(sigma) per step | ratio l = 2 | 3 | 4 | 6 | 8 | 12 | 16 | max se |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for ds, n in ((2e-4, 10000), (1e-4, 20000)):
+        eq = SP.equilibrium(0.04, l_max=16, seeds=range(16), ds=ds, n_steps=n, burn_in=int(0.1 / ds),
+                            kT_over_kappa=KT)
+        th = SP.equilibrium_variance(eq["l"][2:], eq["sigma_mean"], 0.04, KT)
+        ratio = dict(zip(range(2, 17), eq["var"][2:] / th, strict=True))
+        se = np.max(eq["var_se"][2:] / th)
+        cols = " | ".join(f"{ratio[l]:.3f}" for l in (2, 3, 4, 6, 8, 12, 16))
+        print(f"| {ds:g} | {eq['sigma_mean']:.2f} | {eq['sigma_mean_field']:.2f} | {eq['sigma_sd']:.1f} | {cols} "
+              f"| {se:.3f} |", flush=True)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=16)
+    ap.add_argument("--steps", type=int, default=4000)
+    ap.add_argument("--skip-equilibrium", action="store_true")
+    a = ap.parse_args()
+    wrinkling(tuple(range(a.seeds)), a.steps)
+    if not a.skip_equilibrium:
+        equilibrium_table()
+
+
+if __name__ == "__main__":
+    main()
