@@ -131,6 +131,26 @@ def test_one_sweep_point_by_its_file(tmp_path):
     assert "--delta 0.116" in r.stdout and "--level 2" in r.stdout
 
 
+def test_an_ensemble_plans_one_case_per_noise_seed(tmp_path):
+    """noise_seeds makes the seed a sweep dimension: one run per (S, seed), ids ending in _kT<kT>_n<seed>, the seed
+    in the run's parameters, one mesh and one PA per S shared by the members; without kT > 0 it is refused."""
+    wd = workflow_copy(tmp_path)
+    cfg = {**TINY, "sweep": [{"delta": 0.116, "S": [553, 2224], "noise_seeds": [0, 1, 2],
+                              "run": {"scheme": "inextensible", "tension_space": "harmonic", "kT": 0.0405}}]}
+    r = snakemake(wd, "-n", "--configfile", write_config(wd, cfg))
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    cases = {j["wildcards"]["case_id"] for j in jobs if j["rule"] == "simulate"}
+    assert cases == {f"D0.116_S{S}_N16_L2_kT0.0405_n{k}" for S in (553, 2224) for k in range(3)}
+    assert sum(j["rule"] == "mesh" for j in jobs) == 1 and sum(j["rule"] == "theory" for j in jobs) == 2
+    r = snakemake(wd, "results/runs/D0.116_S553_N16_L2_kT0.0405_n2/trajectory.nc", "-n", "-p", "--configfile",
+                  write_config(wd, cfg))
+    assert r.returncode == 0 and "\nkT: 0.0405\n" in r.stdout and "\nnoise_seed: 2\n" in r.stdout, r.stdout[-3000:]
+    cold = {**TINY, "sweep": [{"delta": 0.116, "S": [553], "noise_seeds": [0, 1]}]}
+    r = snakemake(wd, "-n", "--configfile", write_config(wd, cold, "cold.yaml"))
+    assert r.returncode != 0 and "noise_seeds" in r.stdout + r.stderr and "kT" in r.stdout + r.stderr
+
+
 # --------------------------------------------------------------------------- validation
 @pytest.mark.parametrize("patch, key", [
     ({"run": {"N": "sixteen"}}, "N"),                                  # wrong type

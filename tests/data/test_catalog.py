@@ -65,18 +65,22 @@ def synthetic_spectra(delta, S, n_time=21, t0=-0.4, t1=1.0, l_max=12, kind="spec
 
 
 def write_sweep(root, points, *, N=32, level=3, theory=True, family="icosphere", n_vertices=None, tag=None,
-                run_attrs=None):
+                run_attrs=None, kT=0.0, noise_seed=0):
     """Write results/runs/<id>/spectra.nc (+ theory/<id>.nc, a mesh and a fit-like file) under ``root``;
     returns the written paths."""
     paths = []
     for i, (delta, S, n_time) in enumerate(points):
-        cid = Ci.case_id(delta, S=S, N=N, family=family, level=level, n_vertices=n_vertices, tag=tag)
+        cid = Ci.case_id(delta, S=S, N=N, family=family, level=level, n_vertices=n_vertices, tag=tag, kT=kT,
+                         noise_seed=noise_seed)
         p = root / "runs" / cid / "spectra.nc"
         p.parent.mkdir(parents=True, exist_ok=True)
         extra = dict(run_attrs or {})
         if family != "icosphere":
             extra.update(mesh_family=family, mesh_level=-1)
-        synthetic_spectra(delta, S, n_time=n_time, N=N, level=level, seed=i, run_attrs=extra).to_netcdf(p)
+        if kT > 0:
+            extra.update(kT=kT, noise_seed=noise_seed)
+        synthetic_spectra(delta, S, n_time=n_time, N=N, level=level, seed=i + 100 * noise_seed,
+                          run_attrs=extra).to_netcdf(p)
         paths.append(p)
         if theory:
             tp = root / "theory" / f"{Ci.theory_id(delta, S)}.nc"
@@ -182,6 +186,32 @@ def test_open_sweep_filters_and_duplicates(tmp_path):
         Sw.open_sweep(root / "catalog.csv", N=128)
     with pytest.raises(C.CatalogError, match="unknown catalog column"):
         Sw.open_sweep(root / "catalog.csv", colour="red")
+
+
+def test_open_sweep_stacks_an_ensemble_along_noise_seed(tmp_path):
+    """Seeds as a sweep dimension: 3 noise seeds at 2 S give (Delta, S, noise_seed); the catalog carries kT and
+    the seed; a deterministic run at the same points is refused in one stack and selected by kT=0."""
+    root = tmp_path / "results"
+    pts = [(0.116, 553.0, 21), (0.116, 2224.0, 21)]
+    paths = []
+    for seed in (0, 1, 2):
+        paths += [p for p in write_sweep(root, pts, theory=False, kT=0.0405, noise_seed=seed) if p.name == "spectra.nc"]
+    det = [p for p in write_sweep(root, pts, theory=False) if p.name == "spectra.nc"]
+    C.write_catalog(sorted(set(paths + det)), root / "catalog.csv")
+    rows = [r for r in C.read_catalog(root / "catalog.csv") if r["kind"] == "spectra"]
+    assert sorted({(float(r["kT"]), r["noise_seed"]) for r in rows}, key=str) == sorted(
+        {(0.0, None), (0.0405, 0), (0.0405, 1), (0.0405, 2)}, key=str)
+    with pytest.raises(C.CatalogError, match="kT=0"):
+        Sw.open_sweep(root / "catalog.csv")
+    ens = Sw.open_sweep(root / "catalog.csv", kT=0.0405)
+    assert dict(ens.l_star.sizes) == {"Delta": 1, "S": 2, "noise_seed": 3}
+    assert list(ens.noise_seed.values) == [0, 1, 2]
+    assert str(ens.case_id.sel(S=553, noise_seed=1).item()) == "D0.116_S553_N32_L3_kT0.0405_n1"
+    assert float(ens.kT.sel(S=553, noise_seed=2).item()) == 0.0405
+    # the distribution over seeds: mean and spread of the time series differ from any one member
+    assert ens.sigma.mean("noise_seed").dims == ("Delta", "S", "time")
+    one = Sw.open_sweep(root / "catalog.csv", kT=0)
+    assert "noise_seed" not in one.dims and one.sizes["S"] == 2
 
 
 def test_catalog_command(tmp_path, capsys):

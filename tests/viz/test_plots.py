@@ -234,3 +234,38 @@ def test_plot_lstar_draws_each_delta_at_its_finest_grid(tmp_path, monkeypatch):
     assert any("0.360" in x for x in labels) and not any("0.200" in x for x in labels)
     points = [ln for ln in figs[0].axes[0].lines if ln.get_linestyle() == "None"]
     assert sum(len(ln.get_xdata()) for ln in points) == 3
+
+
+def test_an_ensemble_is_fitted_as_one_group_with_its_spread_per_S(tmp_path, monkeypatch):
+    """Four noise seeds at three S: one fit group (kT in its key), per-S mean and sd over the seeds that equal
+    numpy's, a deterministic run at the same S in a group of its own, and Fig. 4 draws the ensemble's error bars."""
+    from vesicle_core.analysis.sweep_fits import sweep_fit_dataset
+
+    dss, lstar = [], {}
+    for i, S in enumerate((227.0, 553.0, 2224.0)):
+        for seed in range(4):
+            ds = spectra_like(S=S, kind="spectra", seed=i, maps=False)
+            lstar[S, seed] = 4.0 * S**0.36 * (1 + 0.03 * (seed - 1.5))
+            ds["l_star"] = ((), lstar[S, seed])
+            ds.attrs.update(case_id=f"S{S:g}_n{seed}", kT=0.0405, noise_seed=seed)
+            dss.append(ds)
+        det = spectra_like(S=S, kind="spectra", seed=i, maps=False)
+        det["l_star"] = ((), 4.0 * S**0.36)
+        det.attrs["case_id"] = f"S{S:g}"
+        dss.append(det)
+    fit = sweep_fit_dataset(dss)
+    assert sorted(fit.group_kT.values.tolist()) == [0.0, 0.0405]
+    hot = int(np.flatnonzero(fit.group_kT.values == 0.0405)[0])
+    assert int(fit.n_cases[hot]) == 12 and fit.l_star_exponent[hot] == pytest.approx(0.36, abs=1e-6)
+    pts = np.flatnonzero(fit.point_group.values == hot)
+    assert fit.point_n_seeds.values[pts].tolist() == [4, 4, 4]
+    for p in pts:
+        S = float(fit.point_S[p])
+        v = np.array([lstar[S, s] for s in range(4)])
+        assert float(fit.point_l_star_mean[p]) == pytest.approx(v.mean())
+        assert float(fit.point_l_star_sd[p]) == pytest.approx(v.std(ddof=1))
+    figs = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, outputs, dpi=150: figs.append(fig))
+    plots.plot_lstar(fit, tmp_path / "l.png", guide=False)
+    labels = figs[0].axes[0].get_legend_handles_labels()[1]
+    assert any("ensemble mean +- sd (4 seeds)" in x for x in labels)

@@ -24,13 +24,40 @@ def case_decay(ds, kind, confidence: float = 0.95) -> TensionDecayFit:
                          rms_tol=0.01 if kind == "theory" else 0.05)
 
 
+def _group_key(r):
+    """A fit group: one kind, Delta, resolution and temperature (the seeds of an ensemble fall in one group)."""
+    return (r["kind"], r["delta"], r["N"], r["vertices"], r["kT"])
+
+
+def _ensemble_points(rows, groups) -> dict:
+    """Per (group, S): the number of seeds and the mean and sample standard deviation of l_*, l_peak, t_* over them
+    (dimension ``point``; sd NaN for a single run). An ensemble's l_* is a distribution, not one value."""
+    pts = sorted({(groups.index(_group_key(r)), r["S"]) for r in rows})
+    out = {"point_group": [], "point_S": [], "point_n_seeds": []}
+    for name in ("l_star", "l_peak", "t_star"):
+        out[f"point_{name}_mean"], out[f"point_{name}_sd"] = [], []
+    for g, S in pts:
+        sel = [r for r in rows if groups.index(_group_key(r)) == g and r["S"] == S]
+        out["point_group"].append(g)
+        out["point_S"].append(S)
+        out["point_n_seeds"].append(len(sel))
+        for name in ("l_star", "l_peak", "t_star"):
+            v = np.array([r[name] for r in sel], dtype=float)
+            out[f"point_{name}_mean"].append(float(np.mean(v)))
+            out[f"point_{name}_sd"].append(float(np.std(v, ddof=1)) if v.size > 1 else math.nan)
+    return {k: ("point", np.array(v)) for k, v in out.items()}
+
+
 def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     """Fits across a sweep: l_* ~ S^b per (kind, Delta) group and the stage-2 tension decay per case.
 
     ``datasets`` are spectra (simulation) or theory (PA) Datasets with scalars ``l_star`` (eq. 31), ``l_peak``
     (dominant mode at t_*), ``t_star``, the series ``sigma(time)`` and attrs ``delta`` and ``S``. A group with
     fewer than ``min_points`` cases, or a case whose tension has no clean stage 2, gets NaN and a ``note``.
-    Returns a Dataset with a ``case`` dimension (per-file values) and a ``group`` dimension (per-sweep fits).
+    Returns a Dataset with a ``case`` dimension (per-file values), a ``group`` dimension (per-sweep fits: one
+    kind, Delta, N, vertex count and kT) and a ``point`` dimension (per group and S: mean and spread over the
+    noise seeds of an ensemble). An ensemble's fit uses every seed's l_* as a point, so its interval carries the
+    scatter over seeds.
     """
     import xarray as xr
 
@@ -47,7 +74,9 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
         # are fitted separately
         N = int(ds.attrs.get("N", 0)) if kind == "simulation" else 0
         nv = int(ds.attrs.get("mesh_n_vertices", ds.attrs.get("n_node", 0))) if kind == "simulation" else 0
-        row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv,
+        kT = float(ds.attrs.get("kT", 0.0)) if kind == "simulation" else 0.0
+        seed = int(ds.attrs.get("noise_seed", 0)) if kT > 0 else -1
+        row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv, "kT": kT, "noise_seed": seed,
                "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
                "l_star": float(ds["l_star"]), "l_peak": float(ds["l_peak"]) if "l_peak" in ds else math.nan,
                "t_star": float(ds["t_star"]), "decay_exponent": math.nan, "decay_ci_low": math.nan,
@@ -62,17 +91,19 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     if not rows:
         raise ConfigError("no datasets to fit")
     case = {k: ("case", np.array([r[k] for r in rows])) for k in rows[0]}
-    groups = sorted({(r["kind"], r["delta"], r["N"], r["vertices"]) for r in rows})
-    gdata = {k: [] for k in ("group_kind", "group_delta", "group_N", "group_vertices", "n_cases")}
+    groups = sorted({_group_key(r) for r in rows})
+    gdata = {k: [] for k in ("group_kind", "group_delta", "group_N", "group_vertices", "group_kT", "n_cases")}
     for name in ("l_star", "l_peak"):
         for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
             gdata[f"{name}_{k}"] = []
-    for kind, delta, N, nv in groups:
-        sel = [r for r in rows if (r["kind"], r["delta"], r["N"], r["vertices"]) == (kind, delta, N, nv)]
+    for key in groups:
+        kind, delta, N, nv, kT = key
+        sel = [r for r in rows if _group_key(r) == key]
         gdata["group_kind"].append(kind)
         gdata["group_delta"].append(delta)
         gdata["group_N"].append(N)
         gdata["group_vertices"].append(nv)
+        gdata["group_kT"].append(kT)
         gdata["n_cases"].append(len(sel))
         for name in ("l_star", "l_peak"):
             pts = [(r["S"], r[name]) for r in sel if np.isfinite(r[name]) and r[name] > 0]
@@ -83,7 +114,7 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
             for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
                 gdata[f"{name}_{k}"].append(getattr(fit, k) if fit is not None else math.nan)
     group = {k: ("group", np.array(v)) for k, v in gdata.items()}
-    out = xr.Dataset({**case, **group})
+    out = xr.Dataset({**case, **group, **_ensemble_points(rows, groups)})
     units = {"S": "1", "delta": "1", "l_star": "1", "l_peak": "1", "t_star": "1/gamma_dot"}
     for k, u in units.items():
         out[k].attrs["units"] = u
@@ -92,6 +123,8 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     out["decay_exponent"].attrs["long_name"] = "stage-2 exponent a of |sigma| ~ t^-a"
     out["l_star_exponent"].attrs["long_name"] = "exponent b of l_* (eq. 31) ~ S^b within the group"
     out["l_peak_exponent"].attrs["long_name"] = "exponent b of l_peak ~ S^b within the group"
+    out["point_l_star_sd"].attrs["long_name"] = "sample standard deviation of l_* over the noise seeds at this S"
+    out["kT"].attrs["units"] = "kappa"
     out.attrs.update(confidence=confidence, min_points=min_points,
                      method="OLS in log-log with Student-t intervals; stage 2 found by fits.detect_tension_stages")
     return out

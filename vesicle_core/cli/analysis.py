@@ -97,6 +97,8 @@ def add_fit(sub):
 
 
 def _cmd_fit(a):
+    import numpy as np
+
     from ..analysis.sweep_fits import sweep_fit_dataset
     from ..data.datasets import read_dataset, write_dataset
 
@@ -115,8 +117,14 @@ def _cmd_fit(a):
     write_dataset(out, a.output)
     for i in range(out.sizes["group"]):
         g = out.isel(group=i)
-        print(f"{str(g.group_kind.values):>10} Delta={float(g.group_delta):g} n={int(g.n_cases)}: "
+        hot = f" kT={float(g.group_kT):g}" if float(g.group_kT) > 0 else ""
+        print(f"{str(g.group_kind.values):>10} Delta={float(g.group_delta):g}{hot} n={int(g.n_cases)}: "
               f"l_* ~ S^{float(g.l_star_exponent):.3f} [{float(g.l_star_ci_low):.3f}, {float(g.l_star_ci_high):.3f}], "
               f"l_peak ~ S^{float(g.l_peak_exponent):.3f}")
+    for i in np.flatnonzero(out["point_n_seeds"].values > 1):
+        p = out.isel(point=i)
+        print(f"  ensemble S={float(p.point_S):g}: {int(p.point_n_seeds)} seeds, l_* = {float(p.point_l_star_mean):.2f}"
+              f" +- {float(p.point_l_star_sd):.2f} (sd), t_* = {float(p.point_t_star_mean):.3f} +- "
+              f"{float(p.point_t_star_sd):.3f}")
     print(f"wrote {a.output}")
     return 0

@@ -9,6 +9,9 @@ module share the builders below, so a path always tells what is in it):
     case      D0.116_S553_N32_L3        Delta, S (or ``chi67`` when the flow was given as chi), grid N, mesh
               D0.116_S553_N512_Q26070   (L<level>: icosphere; Q<n_vertices>[s<seed>]: quasi-uniform family),
               D0.116_S553_N32_L3_fine   optional tag (letters, digits, '-') for otherwise equal cases
+              D0.116_S553_N128_Q2562_kT0.0405_n3
+                                        thermal noise on (kT > 0): k_B T / kappa and the noise seed (one
+                                        member of an ensemble; kT = 0 writes neither, as before)
     theory    D0.116_S553               the perturbation analysis depends on Delta and S only
     mesh      icosphere_L3_D0.116, quasiuniform_n26070_s0_D0.997
 
@@ -60,12 +63,14 @@ def _mesh_part(family, level, n_vertices=None, seed=0):
 
 
 def case_id(delta, S=None, chi=None, N=_RUN_DEFAULT_N, family=_MESH_DEFAULTS["family"], level=_MESH_DEFAULTS["level"],
-            n_vertices=None, seed=0, tag=None) -> str:
+            n_vertices=None, seed=0, tag=None, kT=0.0, noise_seed=0) -> str:
     """Id of one simulation case from its physical parameters (module docstring)."""
     if (S is None) == (chi is None):
         raise ConfigError("a case needs exactly one of S and chi")
     flow = f"S{fmt_number(S)}" if S is not None else f"chi{fmt_number(chi)}"
     out = f"D{fmt_number(delta)}_{flow}_N{int(N)}_{_mesh_part(family, level, n_vertices, seed)}"
+    if kT is not None and float(kT) > 0:
+        out += f"_kT{fmt_number(kT)}_n{int(noise_seed)}"
     if tag:
         if not re.fullmatch(TAG_PATTERN, str(tag)):
             raise ConfigError(f"tag must match {TAG_PATTERN} (letters, digits, '-'), got {tag!r}")
@@ -99,6 +104,7 @@ _CASE_RE = re.compile(
     rf"^D(?P<delta>{_NUM})_(?:S(?P<S>{_NUM})|chi(?P<chi>{_NUM}))"
     rf"(?:_N(?P<N>[0-9]+)_(?:L(?P<level>[0-9]+)|QL(?P<qlevel>[0-9]+)(?:s(?P<qseed>[0-9]+))?"
     rf"|Q(?P<nv>[0-9]+)(?:s(?P<seed>[0-9]+))?))?"
+    rf"(?:_kT(?P<kT>{_NUM})_n(?P<noise_seed>[0-9]+))?"
     rf"(?:_seed(?P<theory_seed>[0-9]+))?(?:_(?P<tag>{TAG_PATTERN}))?$"
 )
 
@@ -107,7 +113,7 @@ def parse_case_id(text: str) -> dict | None:
     """Parameters encoded in a case or theory id (None if ``text`` is not such an id).
 
     Returns Delta, S, chi (both filled: the missing one from :mod:`units`), N, mesh_family, mesh_level,
-    n_vertices, tag; entries not encoded are None.
+    n_vertices, kT, noise_seed, tag; entries not encoded are None (kT and noise_seed: a deterministic case).
     """
     from ..model.units import S_from_chi, chi_from_S
 
@@ -125,7 +131,8 @@ def parse_case_id(text: str) -> dict | None:
     else:
         chi = chi_from_S(S, delta)
     out = {"Delta": delta, "S": S, "chi": chi, "N": None, "mesh_family": None, "mesh_level": None,
-           "n_vertices": None, "tag": g["tag"]}
+           "n_vertices": None, "kT": float(g["kT"]) if g["kT"] is not None else None,
+           "noise_seed": int(g["noise_seed"]) if g["noise_seed"] is not None else None, "tag": g["tag"]}
     if g["N"] is not None:
         out["N"] = int(g["N"])
         if g["level"] is not None:

@@ -18,6 +18,9 @@ beside them (esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attrib
                       run configuration of trajectories and spectra (kernel "peskin4", coupling "kernel" and
                       tension_space "triangle" for files written before those options, which always used them);
                       empty for the other kinds
+    kT, noise_seed    thermal noise of runs: k_B T / kappa (0: deterministic, also for files written before the
+                      noise existed) and, when kT > 0, the noise seed (one member of an ensemble); from the id
+                      (``_kT<kT>_n<seed>``), else the dataset's attributes; empty for the other kinds
     backend           numpy | cupy (runs)
     tag               the tag of the case id (the sweep group's ``tag``), empty when untagged
     path, created, package_version
@@ -66,10 +69,11 @@ __all__ = [
 ]
 
 COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype",
-           "kernel", "coupling", "tension_space", "backend", "tag", "path", "created", "package_version", "delta_mesh",
-           "l_star", "t_star", "variables")
-NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "delta_mesh", "l_star", "t_star")
-INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices")
+           "kernel", "coupling", "tension_space", "kT", "noise_seed", "backend", "tag", "path", "created",
+           "package_version", "delta_mesh", "l_star", "t_star", "variables")
+NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "kT", "noise_seed", "delta_mesh", "l_star",
+                   "t_star")
+INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices", "noise_seed")
 RUN_KINDS = ("trajectory", "spectra")
 
 KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")
@@ -177,6 +181,18 @@ def _n_vertices(ds, attrs, kind, parsed, family, level):
     return int(nv) if math.isfinite(nv) and nv > 0 else None
 
 
+def _noise_columns(attrs, kind, parsed) -> dict:
+    """kT and noise_seed of a run (the id first, then the attributes); the seed only where the noise is on."""
+    if kind not in RUN_KINDS:
+        return {"kT": None, "noise_seed": None}
+    kT = parsed.get("kT")
+    kT = _num_or_nan(_scalar_attr(attrs, "kT") if kT is None else kT)
+    kT = 0.0 if not math.isfinite(kT) else kT
+    seed = parsed.get("noise_seed")
+    seed = _num_or_nan(_scalar_attr(attrs, "noise_seed") if seed is None else seed)
+    return {"kT": kT, "noise_seed": int(seed) if kT > 0 and math.isfinite(seed) else None}
+
+
 def catalog_row(path, root=None) -> dict:
     """One catalog row for a netCDF dataset (kind, parameters, path relative to ``root``, creation time...)."""
     import xarray as xr
@@ -223,6 +239,7 @@ def catalog_row(path, root=None) -> dict:
             run["kernel"] = run["kernel"] or DEFAULT_KERNEL
             run["coupling"] = run["coupling"] or "kernel"
             run["tension_space"] = run["tension_space"] or "triangle"
+        noise = _noise_columns(attrs, kind, parsed)
         row.update(
             Delta=_num_or_nan(delta), S=_num_or_nan(S), chi=_num_or_nan(chi),
             N=int(N) if N is not None else None, mesh_family=family if kind != "theory" and kind != "fit" else None,
@@ -230,7 +247,7 @@ def catalog_row(path, root=None) -> dict:
             backend=_scalar_attr(attrs, "backend") if kind in ("trajectory", "spectra") else None,
             created=_created(attrs, path), package_version=_package_version(attrs),
             delta_mesh=_num_or_nan(delta_mesh), n_vertices=n_vertices, tag=parsed.get("tag"),
-            variables=repr(sorted(str(v) for v in ds.data_vars)), **run,
+            variables=repr(sorted(str(v) for v in ds.data_vars)), **run, **noise,
         )
         if kind in ("spectra", "theory"):
             for name in ("l_star", "t_star"):
@@ -284,6 +301,8 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
         "coupling": f"fluid-membrane coupling of the run ({_choices('coupling')})",
         "tension_space": f"tension space of the inextensible scheme ({_choices('tension_space')}; triangle for the "
                          "others)",
+        "kT": "thermal noise of the run, k_B T / kappa (0: deterministic)",
+        "noise_seed": "noise seed of the run (one member of an ensemble), empty when kT = 0",
         "backend": "array backend of the run (numpy | cupy)",
         "tag": "tag of the case (its sweep group), empty when untagged",
         "path": "file location relative to the directory of this catalog",
@@ -457,8 +476,9 @@ def _read_catalog(path) -> tuple[Path, list[str], list[dict]]:
 
 def read_catalog(path) -> list[dict]:
     """Rows of a catalog (CSV, its ESM JSON, or a directory holding catalog.csv); numeric columns as numbers
-    (NaN, or None for the integer columns N, mesh_level, n_vertices, when empty), ``variables`` as a tuple of
-    names, text columns as strings ("" when empty), and an extra ``abspath`` with the absolute file location."""
+    (NaN, or None for the integer columns N, mesh_level, n_vertices, noise_seed, when empty), ``variables`` as a
+    tuple of names, text columns as strings ("" when empty), and an extra ``abspath`` with the absolute file
+    location."""
     return _read_catalog(path)[2]
 
 

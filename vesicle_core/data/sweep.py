@@ -16,7 +16,13 @@ the dimensions ``Delta`` and ``S`` (outer join; points not in the sweep are NaN)
   for those: the ``path`` variable holds its location).
 
 Per-point metadata become variables on (Delta, S): ``case_id``, ``path``, ``chi``, ``N``, ``mesh_level``,
-``n_vertices``, ``mesh_family``, ``scheme``, ``dtype``, ``kernel``, ``coupling``, ``tension_space``, ``tag``.
+``n_vertices``, ``mesh_family``, ``scheme``, ``dtype``, ``kernel``, ``coupling``, ``tension_space``, ``kT``,
+``noise_seed``, ``tag``.
+
+Ensembles: when the selected runs hold more than one ``noise_seed`` (thermal noise, one case per seed), the seed
+is a third dimension, ``noise_seed``, and l_* is a distribution: ``sw.l_star.mean("noise_seed")``,
+``sw.l_star.std("noise_seed", ddof=1)``. Runs of different kT at one point are told apart by selecting ``kT=``;
+deterministic and noisy runs cannot share one stack (select ``kT=0`` or ``kT=0.0405``).
 If two catalog rows share (Delta, S) (e.g. two grids or two meshes), select by any catalog column:
 ``open_sweep("results/catalog.csv", N=64, n_vertices=642)``, ``scheme="projection"``, ``tag="coarse"``. Numeric
 columns compare as numbers (``n_vertices="642"`` selects 642; floats to 1e-9 relative), a list selects any of its
@@ -130,7 +136,7 @@ def select_rows(rows, columns, where: dict, source="catalog") -> list[dict]:
 _TIME_SERIES_DROP_DIMS = ("m", "theta", "phi", "axis", "principal")
 # columns named in the "two datasets at one (Delta, S)" error when they tell the two apart
 _SELECT_HINT_COLUMNS = ("N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype", "kernel", "coupling",
-                        "tension_space", "backend", "tag", "chi")
+                        "tension_space", "kT", "backend", "tag", "chi")
 
 
 def _same(a, b) -> bool:
@@ -184,8 +190,21 @@ def _common_time(datasets, time):
     return grid
 
 
+def _seed_dimension(rows, kind) -> bool:
+    """True when the rows are an ensemble (several noise seeds); refuses a mix of deterministic and noisy runs."""
+    seeds = {None if _is_empty(r.get("noise_seed")) else int(float(r["noise_seed"])) for r in rows}
+    if len(seeds) <= 1:
+        return False
+    if None in seeds:
+        kTs = sorted({_num_or_nan(r.get("kT")) for r in rows})
+        raise CatalogError(f"the {kind} datasets mix deterministic and noisy runs (kT = "
+                           f"{', '.join(f'{k:g}' for k in kTs)}); select one: kT=0 or kT=<value>")
+    return True
+
+
 def open_sweep(path, kind: str = "spectra", time=None, **where):
-    """All datasets of one kind in a catalog as one xarray Dataset on the sweep dimensions (Delta, S).
+    """All datasets of one kind in a catalog as one xarray Dataset on the sweep dimensions (Delta, S), and
+    ``noise_seed`` for an ensemble (module docstring).
 
     path: catalog CSV, its ESM JSON, or the directory holding catalog.csv. kind: "spectra" (simulation, default)
     or "theory" (perturbation analysis). time: common time grid for the time series (default: see module
@@ -201,15 +220,17 @@ def open_sweep(path, kind: str = "spectra", time=None, **where):
     rows = select_rows([r for r in rows if r["kind"] == kind], columns, where, source=str(csv_path))
     if not rows:
         raise CatalogError(f"{path}: no {kind} datasets" + (f" matching {where}" if where else ""))
+    by_seed = _seed_dimension(rows, kind)
     keys = {}
     for r in rows:
-        k = (r["Delta"], r["S"])
+        k = (r["Delta"], r["S"], r.get("noise_seed")) if by_seed else (r["Delta"], r["S"])
         if k in keys:
             other = keys[k]
             differ = [c for c in _SELECT_HINT_COLUMNS if c in columns and not _same(other[c], r[c])]
             hint = (f"select one with a column where they differ: {', '.join(f'{c}=...' for c in differ)} "
                     "(or case_id=...)") if differ else "select one with case_id=..."
-            raise CatalogError(f"two {kind} datasets at Delta={k[0]:g}, S={k[1]:g} ({other['case_id']} and "
+            at = f"Delta={k[0]:g}, S={k[1]:g}" + (f", noise_seed={k[2]}" if by_seed else "")
+            raise CatalogError(f"two {kind} datasets at {at} ({other['case_id']} and "
                                f"{r['case_id']}); {hint}")
         keys[k] = r
     dss = []
@@ -221,16 +242,22 @@ def open_sweep(path, kind: str = "spectra", time=None, **where):
     for r, ds in zip(rows, dss, strict=True):
         red = _reduce_one(ds, grid, kind)
         meta = {"case_id": r["case_id"], "path": r["abspath"], "chi": r["chi"]}
-        for c in INTEGER_COLUMNS:
-            meta[c] = float(r[c]) if r[c] is not None else math.nan
+        for c in (*INTEGER_COLUMNS, "kT"):
+            if c in r and not (by_seed and c == "noise_seed"):
+                meta[c] = float(r[c]) if not _is_empty(r[c]) else math.nan
         for c in ("mesh_family", "scheme", "dtype", "kernel", "coupling", "tension_space", "tag"):
             meta[c] = str(r[c] or "")
         for k, v in meta.items():
             red[k] = xr.DataArray(v)
-        red = red.expand_dims(Delta=[r["Delta"]], S=[r["S"]])
+        dims = {"Delta": [r["Delta"]], "S": [r["S"]]}
+        if by_seed:
+            dims["noise_seed"] = [int(r["noise_seed"])]
+        red = red.expand_dims(dims)
         parts.append(red)
     out = xr.merge(parts, join="outer", compat="no_conflicts", combine_attrs="drop")
-    out = out.sortby(["Delta", "S"])
+    out = out.sortby(["Delta", "S", "noise_seed"] if by_seed else ["Delta", "S"])
+    if by_seed:
+        out["noise_seed"].attrs.update(long_name="noise seed of the run (ensemble member)")
     out["Delta"].attrs.update(units="1", long_name="excess area Delta (nominal)")
     out["S"].attrs.update(units="1", long_name="flow strength S")
     if "time" in out.coords:

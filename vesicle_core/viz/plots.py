@@ -253,6 +253,22 @@ def _group_key(delta):
     return float(f"{float(delta):.4g}")
 
 
+def _draw_ensembles(ax, ds, measure, colour, finest):
+    """Mean +- sd over the noise seeds at each S of an ensemble (fit's ``point`` dimension, > 1 seed)."""
+    if "point" not in ds.dims or f"point_{measure}_mean" not in ds.variables:
+        return
+    n = np.asarray(ds["point_n_seeds"].values, dtype=int)
+    g = np.asarray(ds["point_group"].values, dtype=int)
+    for i in np.flatnonzero(n > 1):
+        k = _group_key(float(ds["group_delta"].values[g[i]]))
+        if str(ds["group_kind"].values[g[i]]) != "simulation" or int(ds["group_N"].values[g[i]]) != finest.get(k):
+            continue
+        ax.errorbar(float(ds["point_S"].values[i]), float(ds[f"point_{measure}_mean"].values[i]),
+                    yerr=float(ds[f"point_{measure}_sd"].values[i]), fmt="D", ms=5, capsize=3, color=colour[k],
+                    mfc="white", label=f"IBM ensemble mean +- sd ({n[i]} seeds)" if i == np.flatnonzero(n > 1)[0]
+                    else None)
+
+
 def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guide=True):
     """Fig. 4: l_* (``measure`` = "l_star", eq. 31, or "l_peak", the dominant mode) against S on log-log axes.
 
@@ -260,6 +276,7 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
     on the ``case`` dimension and per-group power laws on ``group``. Groups with fewer than three points have NaN
     exponents and are drawn without a line. Simulations are drawn at each Delta's finest grid only (a resolution
     study's coarser rungs, seeds and variations would otherwise pile up at the same S), with that N in the legend.
+    An ensemble (several noise seeds at one S) adds its mean +- sd over the seeds.
     """
     plt = _mpl()
     if measure not in ("l_star", "l_peak"):
@@ -289,6 +306,7 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
             grid = f", N = {finest[k]}" if knd == "simulation" and finest[k] > 0 else ""
             ax.plot(S[sel], y[sel], marker=marker, ls="none", ms=7, color=colour[k],
                     mfc=colour[k] if face is None else "none", label=f"{name}, $\\Delta$ = {k:g}{grid}")
+    _draw_ensembles(ax, ds, measure, colour, finest)
     if "group" in ds.dims:
         gk = np.asarray(ds["group_kind"].values).astype(str)
         gd = np.asarray(ds["group_delta"].values, dtype=float)

@@ -46,6 +46,19 @@ def _mesh_params(group, base):
     return mesh
 
 
+def _members(gi, group, flows, run):
+    """(kind, value, noise_seed) of every case of a group: one per flow value, times the group's noise_seeds (an
+    ensemble, kT > 0) or the run's single noise_seed."""
+    seeds = group.get("noise_seeds")
+    if seeds is not None and not float(run["kT"]) > 0:
+        raise ValueError(
+            f"config: sweep[{gi}] gives noise_seeds but kT = {run['kT']}: an ensemble needs thermal noise "
+            "(run.kT > 0, scheme: inextensible)"
+        )
+    seeds = [int(s) for s in seeds] if seeds is not None else [int(run["noise_seed"])]
+    return [(kind, value, s) for kind, value in flows for s in seeds]
+
+
 def build_sweep(cfg):
     """(cases, meshes, theories): dicts id -> parameters, from a validated config."""
     cases, meshes, theories = {}, {}, {}
@@ -71,9 +84,10 @@ def build_sweep(cfg):
             flows = [("S", float(s)) for s in group["S"]]
         else:
             flows = [("chi", float(c)) for c in group["chi"]]
-        for kind, value in flows:
+        for kind, value, noise_seed in _members(gi, group, flows, run):
             S = value if kind == "S" else S_from_chi(value, delta)
             chi = chi_from_S(value, delta) if kind == "S" else value
+            member = {**run, "noise_seed": noise_seed}
             cid = _case_id(
                 delta,
                 **{kind: value},
@@ -83,6 +97,8 @@ def build_sweep(cfg):
                 n_vertices=mesh["n_vertices"] if mesh["family"] == "quasiuniform" else None,
                 seed=mesh["seed"] if mesh["family"] == "quasiuniform" else 0,
                 tag=group.get("tag"),
+                kT=run["kT"],
+                noise_seed=noise_seed,
             )
             if cid in cases:
                 raise ValueError(
@@ -96,7 +112,7 @@ def build_sweep(cfg):
                 "chi": float(chi),
                 "mesh_id": mid,
                 "theory_id": tid,
-                "run": run,
+                "run": member,
                 "group": gi,
             }
             theories.setdefault(tid, {"delta": delta, "S": float(S)})
