@@ -99,6 +99,38 @@ def test_resume_is_bit_identical(tmp_path):
         assert b.attrs["wall_time_s"] > b.attrs["wall_time_s_last_call"] > 0
 
 
+def test_a_reader_holding_the_partial_file_does_not_stop_the_run(tmp_path, monkeypatch, capsys):
+    """HDF5 locks a file another program has open, and the frame write then fails. The run keeps the frames in
+    memory, warns once, writes them when the file is free (here after 6 refused opens, across a checkpoint) and
+    ends with the uninterrupted run's frames bit for bit."""
+    import time
+
+    from vesicle_core.solver.trajectory import TrajectoryWriter
+
+    m = _mesh(level=2)
+    cfg = RunConfig(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=25, Lambda=1e4,
+                    K_volume=1e5, dt=2e-4)
+    ref = run(m, cfg, tmp_path / "a", progress=False)
+    real = TrajectoryWriter._write_pending
+    opens = []
+
+    def locked(self):
+        if self._pending or self._late_velocity is not None:
+            opens.append(1)
+            if 3 <= len(opens) <= 8:  # what netCDF4.Dataset(path, "a") raises on a file HDF5 has locked
+                raise OSError(-101, "NetCDF: HDF error")
+        return real(self)
+
+    monkeypatch.setattr(TrajectoryWriter, "_write_pending", locked)
+    monkeypatch.setattr(time, "sleep", lambda s: None)
+    res = run(m, cfg, tmp_path / "b", progress=False)
+    assert "cannot write" in capsys.readouterr().err and len(opens) > 8
+    with xr.open_dataset(ref) as a, xr.open_dataset(res) as b:
+        assert a.sizes["time"] == b.sizes["time"]
+        for v in ("node_x", "node_y", "node_z", "face_tension", "tension", "time"):
+            assert np.array_equal(a[v].values, b[v].values), v
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_stop_signal_checkpoints_the_step_and_resumes_identically(tmp_path, monkeypatch, sig):
     """A scheduler's SIGTERM (or Ctrl-C) mid-step: the step finishes, a checkpoint of it is written (long before

@@ -409,6 +409,10 @@ class _Run:
             self.checkpoint()
 
     def checkpoint(self) -> None:
+        # a checkpoint counts the frames on disk: with frames still in memory (the file held by a reader) a resume
+        # would find fewer than it claims, so skip this one and keep the last
+        if not self.writer.flush(wait_s=5.0):
+            return
         u_hat = self.solver.stokes.state["u_hat"] if self.cfg.rho_bar > 0 else None
         wall0 = self.state.wall_s
         self.state.wall_s = wall0 + (_time.perf_counter() - self.wall0)  # the run's wall time up to this step

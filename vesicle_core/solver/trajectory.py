@@ -10,7 +10,8 @@ Run directory (``vesicle run -o DIR``)
     failure.nc             positions and message of a run stopped by NumericalInstability
 
 Frames written after the checkpoint a run resumes from are dropped on resume (:meth:`TrajectoryWriter._truncate`):
-they are recomputed identically.
+they are recomputed identically. A frame that cannot be written because another program holds the partial file
+open stays in memory until the file is free; no checkpoint is written past a frame that is not on disk.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ TRAJECTORY = "trajectory.nc"
 PARTIAL = "trajectory.partial.nc"
 CHECKPOINT = "checkpoint.nc"
 FAILURE = "failure.nc"
+#: how long the end of a run waits for a trajectory file that another program holds open
+FINAL_WAIT_S = 600.0
 
 
 @dataclass
@@ -131,6 +134,7 @@ class TrajectoryWriter:
         self.n_nodes = int(n_nodes)
         self.attrs = attrs
         self.velocity = bool(velocity)
+        self._pending, self._late_velocity, self._warned = [], None, False
         if resume_frames is None or not self.path.exists():
             self._create()
         else:
@@ -185,29 +189,76 @@ class TrajectoryWriter:
         atomic_to_netcdf(kept, self.path, unlimited_dims=["time"])
 
     def append(self, X, face_tension, scalars: dict):
-        import netCDF4
-
-        with netCDF4.Dataset(self.path, "a") as nc:
-            i = nc.dimensions["time"].size
-            nc["node_x"][i, :] = X[:, 0]
-            nc["node_y"][i, :] = X[:, 1]
-            nc["node_z"][i, :] = X[:, 2]
-            nc["face_tension"][i, :] = face_tension
-            for k in self.FRAME_VARS:
-                nc[k][i] = scalars[k]
+        """Queue a frame and write every queued frame (see :meth:`flush`)."""
+        self._pending.append({"X": np.array(X, dtype=float), "tension": np.array(face_tension),
+                              "scalars": {k: float(scalars[k]) for k in self.FRAME_VARS}, "U": None})
+        self.flush()
 
     def set_velocity(self, U):
-        """The velocity of the last frame written: the step from it is only known after the frame."""
+        """The velocity of the last frame: the step from it is only known after the frame."""
+        U = np.array(U, dtype=float)
+        if self._pending:
+            self._pending[-1]["U"] = U
+        else:
+            self._late_velocity = U
+        self.flush()
+
+    def flush(self, wait_s: float = 0.0) -> bool:
+        """Write the frames still held in memory; True when none is left.
+
+        Another program reading trajectory.partial.nc (an open xarray Dataset: HDF5 locks the file) makes the write
+        fail. The run must not die of that, so the frames stay in memory and the next frame, checkpoint or the end
+        tries again; ``wait_s``: keep trying that long (checkpoints and the end must not run ahead of the file)."""
+        import sys
+        import time
+
+        deadline = time.monotonic() + float(wait_s)
+        while True:
+            try:
+                self._write_pending()
+                return True
+            except OSError as exc:
+                if not self._warned:
+                    print(f"[vesicle run] warning: cannot write {self.path} ({exc}); is another program holding it "
+                          "open? Frames are kept in memory and written once it is free (copy the file to read it "
+                          "while a run goes)", file=sys.stderr, flush=True)
+                    self._warned = True
+                if time.monotonic() >= deadline:
+                    return False
+                time.sleep(0.5)
+
+    def _write_pending(self):
         import netCDF4
 
+        if not self._pending and self._late_velocity is None:
+            return
         with netCDF4.Dataset(self.path, "a") as nc:
-            i = nc.dimensions["time"].size - 1
-            for c, name in enumerate(self.VELOCITY_VARS):
-                nc[name][i, :] = U[:, c]
+            if self._late_velocity is not None:
+                i = nc.dimensions["time"].size - 1
+                for c, name in enumerate(self.VELOCITY_VARS):
+                    nc[name][i, :] = self._late_velocity[:, c]
+                self._late_velocity = None
+            while self._pending:
+                f = self._pending[0]
+                i = nc.dimensions["time"].size
+                nc["node_x"][i, :] = f["X"][:, 0]
+                nc["node_y"][i, :] = f["X"][:, 1]
+                nc["node_z"][i, :] = f["X"][:, 2]
+                nc["face_tension"][i, :] = f["tension"]
+                for k in self.FRAME_VARS:
+                    nc[k][i] = f["scalars"][k]
+                if f["U"] is not None:
+                    for c, name in enumerate(self.VELOCITY_VARS):
+                        nc[name][i, :] = f["U"][:, c]
+                self._pending.pop(0)
 
     def finalize(self, t_reverse_tau: float, chi: float, extra_attrs: dict) -> Path:
         """Add the time coordinate gamma_dot (t - t_reverse), mark complete, and move to trajectory.nc."""
         import xarray as xr
+
+        if not self.flush(wait_s=FINAL_WAIT_S):
+            raise OSError(f"{self.path} stayed locked for {FINAL_WAIT_S:g} s: close the program that holds it and "
+                          "rerun (the run resumes from its checkpoint)")
 
         with xr.open_dataset(self.path) as ds:
             ds = ds.load()
