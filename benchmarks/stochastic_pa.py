@@ -4,14 +4,16 @@
 
 Delta = 0.116, S = 553 and 2224 (the paper's quasi-spherical pair). Rows (each over the same ``--seeds`` seeds):
 
-* ``PA`` -- theory.solve, the deterministic PA from the literal thermal start (the project's default PA);
+* ``PA`` -- theory.solve, the deterministic PA from the literal thermal start (the project's default PA), at the
+  three kT;
 * ``start`` -- the stochastic PA's equilibrium start, deterministic after the reversal (noise="start");
 * ``on`` -- noise on throughout, at kT/kappa = 0.00405, 0.0405, 0.405 (x0.1, x1, x10);
 * the truncation l_max (every mode fluctuates, so l_max is an input: 20, 30, default, 1.5 x default);
 * the grid: the rates damped by theory.grid_damping for h = 5/128 (128^3 in a 5 R box), kernel and sharp coupling;
 * the step: 2 x ``--steps``.
 
-Then the equilibrium spectrum of the free vesicle (S = 0, Delta = 0.04, l_max = 16, 16 seeds) at two steps:
+Then the equilibrium spectrum of the free vesicle (S = 0, Delta = 0.04, l_max = 16, ``--equilibrium-seeds`` seeds,
+2 tau each after a burn-in of 0.1 tau) at two steps:
 measured <|u_lm|^2> over kT / (kappa Delta [l(l+1) + <sigma>]), and the exact fixed-area ensemble (rejection
 sampling) over the same formula at the mean-field tension: what the constraint alone does to the spectrum.
 """
@@ -50,9 +52,10 @@ def wrinkling(seeds, steps):
     print("|---|---|---|---|---|---|---|---|---|")
     for S in (553.0, 2224.0):
         L = default_l_max(S)
-        ref = T.solve(DELTA, S)
-        print(f"| {S:g} | PA (deterministic, literal thermal start) | {KT:g} | {ref.l_max} | {ref.l_star:.2f} "
-              f"| {ref.l_peak:.0f} | {ref.t_star:.4f} | - | - |", flush=True)
+        for k in (KT / 10, KT, KT * 10):
+            ref = T.solve(DELTA, S, kT_over_kappa=k)
+            print(f"| {S:g} | PA (deterministic, literal thermal start) | {k:g} | {ref.l_max} | {ref.l_star:.2f} "
+                  f"| {ref.l_peak:.0f} | {ref.t_star:.4f} | - | - |", flush=True)
         rows = [("start (equilibrium start, no noise after)", dict(noise="start"))]
         rows += [("on", dict(kT_over_kappa=k)) for k in (KT / 10, KT, KT * 10)]
         rows += [("on, l_max", dict(l_max=lm)) for lm in (20, 30, int(1.5 * L))]
@@ -66,12 +69,14 @@ def wrinkling(seeds, steps):
                 print(f"<!-- S={S:g} l_star per seed: {np.round(run.l_star, 2).tolist()} -->", flush=True)
 
 
-def equilibrium_table():
+def equilibrium_table(n_seeds):
     print()
     print("| ds | <sigma> | mean-field sigma | sd(sigma) per step | ratio l = 2 | 3 | 4 | 6 | 8 | 12 | 16 | max se |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for ds, n in ((2e-4, 10000), (1e-4, 20000)):
-        eq = SP.equilibrium(0.04, l_max=16, seeds=range(16), ds=ds, n_steps=n, burn_in=int(0.1 / ds),
+    # other seeds at the second step: the same seeds would draw the same deviates and correlate the two rows
+    for first, ds, n in ((0, 2e-4, 10000), (n_seeds, 1e-4, 20000)):
+        eq = SP.equilibrium(0.04, l_max=16, seeds=range(first, first + n_seeds), ds=ds, n_steps=n,
+                            burn_in=int(0.1 / ds),
                             kT_over_kappa=KT)
         th = SP.equilibrium_variance(eq["l"][2:], eq["sigma_mean"], 0.04, KT)
         ratio = dict(zip(range(2, 17), eq["var"][2:] / th, strict=True))
@@ -104,12 +109,13 @@ def constrained_reference(draws=4_000_000, width=0.01, seed=5):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=16)
+    ap.add_argument("--equilibrium-seeds", type=int, default=64)
     ap.add_argument("--steps", type=int, default=4000)
     ap.add_argument("--skip-equilibrium", action="store_true")
     a = ap.parse_args()
     wrinkling(tuple(range(a.seeds)), a.steps)
     if not a.skip_equilibrium:
-        equilibrium_table()
+        equilibrium_table(a.equilibrium_seeds)
         constrained_reference()
 
 

@@ -1,0 +1,95 @@
+"""Equilibrium shape spectrum and mode autocorrelation times of a noisy IBM run without flow (chi = 0).
+
+    python benchmarks/thermal_equilibrium.py TRAJECTORY.nc [--burn-in 0.2] [--l-max L] > numbers.md
+
+Make the run with ``vesicle run`` (chi: 0, stretch: 0, scheme: inextensible, kT > 0; docs/thermal.md section 6
+gives the configuration used). Every frame after the burn-in fraction is decomposed (``harmonics.decompose``,
+the pn rule, the nominal Delta of the run) into u_lm up to ``--l-max`` (default: the mesh's resolvable l, capped
+at 16). Printed per l:
+
+* <|u_lm|^2> (frames and m averaged) over kT / (kappa Delta [l(l+1) + sigma_bar]), sigma_bar the run's mean
+  tension over the same frames (the trajectory's ``tension``), with the standard error of 8 time blocks;
+* the same over the exact fixed-area ensemble is not applied here (it is a < 2% effect at l = 2 for ~150 modes,
+  benchmarks/stochastic_pa.py);
+* the autocorrelation time of Re/Im u_lm (m > 0): the lag at which the normalised autocorrelation, averaged over
+  m, first falls below 1/e (interpolated), against 1 / lam_l with lam_l = r_l A_l [l(l+1) + sigma_bar] and r_l
+  the grid's measured damping (theory.grid_damping, h = L/N, the run's kernel and coupling): the deterministic
+  relaxation rate of the same grid.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+import xarray as xr
+
+from vesicle_core.analysis import harmonics as H
+from vesicle_core.analysis.theory import grid_damping
+from vesicle_core.geometry.surface import resolvable_l_max
+from vesicle_core.model.modes import a_l
+
+
+def spectra(ds, l_max, delta, first):
+    f = ds.face_node_connectivity.values
+    X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
+    return np.stack([H.decompose(X[k], f, l_max, delta=delta) for k in range(first, X.shape[0])])
+
+
+def corr_time(x, dt, max_lag):
+    """Lag where the normalised autocorrelation of the real series x (frames, k) first drops below 1/e."""
+    x = x - x.mean(axis=0)
+    var = (x * x).mean()
+    c = [1.0] + [float((x[lag:] * x[:-lag]).mean() / var) for lag in range(1, max_lag)]
+    c = np.array(c)
+    below = np.flatnonzero(c < np.exp(-1))
+    if not below.size:
+        return np.nan
+    j = below[0]
+    c0, c1 = c[j - 1], c[j]
+    return dt * (j - 1 + (c0 - np.exp(-1)) / (c0 - c1))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("trajectory")
+    ap.add_argument("--burn-in", type=float, default=0.2, help="fraction of frames skipped")
+    ap.add_argument("--l-max", type=int, default=None)
+    a = ap.parse_args()
+    ds = xr.open_dataset(a.trajectory)
+    kT, delta = float(ds.attrs["kT"]), float(ds.attrs.get("mesh_target_delta", ds.attrs["delta"]))
+    f = ds.face_node_connectivity.values
+    X0 = np.stack([ds.node_x.values[0], ds.node_y.values[0], ds.node_z.values[0]], -1)
+    L = a.l_max or min(16, resolvable_l_max(X0, f))
+    first = int(a.burn_in * ds.sizes["time"])
+    u = spectra(ds, L, delta, first)
+    t = ds.t_tau.values[first:]
+    sig = ds.tension.values[first:]
+    sbar = float(sig.mean())
+    h = float(ds.attrs["L"]) / int(ds.attrs["N"])
+    r = grid_damping(np.arange(L + 1), h, str(ds.attrs.get("kernel", "peskin4")), str(ds.attrs.get("coupling",
+                                                                                                     "kernel")))
+    dt_frame = float(np.median(np.diff(t)))
+    print(f"run: {a.trajectory}; kT/kappa = {kT:g}, Delta = {delta:g}, N = {ds.attrs['N']}, "
+          f"{ds.sizes['n_node']} vertices, frames {u.shape[0]} over t = {t[0]:.2f} .. {t[-1]:.2f} tau "
+          f"(every {dt_frame:.4g} tau); tension mean {sbar:.1f}, sd over frames {sig.std():.1f}; area drift at the "
+          f"end {float(ds.area_drift.values[-1]):.2e}, volume drift {float(ds.volume_drift.values[-1]):.2e}")
+    print()
+    print("| l | <|u_lm|^2> | kT/(kappa Delta (l(l+1)+sigma_bar)) | ratio | se | autocorr. time [tau] "
+          "| 1/(r_l A_l (l(l+1)+sigma_bar)) | ratio |")
+    print("|---|---|---|---|---|---|---|---|")
+    blocks = np.array_split(np.arange(u.shape[0]), 8)
+    for l in range(2, L + 1):
+        p = np.abs(u[:, l, L - l: L + l + 1]) ** 2
+        mean = float(p.mean())
+        se = float(np.std([p[b].mean() for b in blocks], ddof=1) / np.sqrt(len(blocks)))
+        th = kT / (delta * (l * (l + 1) + sbar))
+        xs = np.concatenate([u[:, l, L + 1: L + l + 1].real, u[:, l, L + 1: L + l + 1].imag], axis=1)
+        tc = corr_time(xs, dt_frame, max(4, u.shape[0] // 4))
+        tl = 1.0 / (r[l] * float(a_l(l)) * (l * (l + 1) + sbar))
+        print(f"| {l} | {mean:.4e} | {th:.4e} | {mean / th:.3f} | {se / th:.3f} | {tc:.4g} | {tl:.4g} "
+              f"| {tc / tl:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
