@@ -136,3 +136,22 @@ def test_a_noisy_run_completes_holds_area_and_volume_and_differs_by_seed(tmp_pat
     d12 = np.abs(out[1].node_x.values[-1] - out[2].node_x.values[-1]).max()
     d1c = np.abs(out[1].node_x.values[-1] - cold.node_x.values[-1]).max()
     assert 1e-6 < d12 < 0.1 and 1e-6 < d1c < 0.1
+
+
+def test_a_noisy_run_that_drifts_beyond_max_drift_stops_as_unstable(tmp_path):
+    """The noise's area and volume change is watched like any other: past max_drift the run stops with
+    NumericalInstability (the CLI's exit 3), writes failure.nc and leaves no complete-looking trajectory.
+    max_drift = 5e-5 lies between this case's deterministic drift (6e-6 in area) and its noisy one at 10 kT
+    (2-3e-4), so it is the noise that trips it: the same run at kT = 0 completes."""
+    import dataclasses
+
+    from vesicle_core.errors import NumericalInstability
+    from vesicle_core.solver.trajectory import FAILURE, TRAJECTORY
+
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    cfg = RunConfig(chi=0.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.0, t_end=0.05,
+                    output_every=0.005, kT=10 * KT, noise_seed=3, max_drift=5e-5)
+    with pytest.raises(NumericalInstability, match="drift"):
+        run(m, cfg, tmp_path / "hot", progress=False)
+    assert (tmp_path / "hot" / FAILURE).exists() and not (tmp_path / "hot" / TRAJECTORY).exists()
+    assert run(m, dataclasses.replace(cfg, kT=0.0), tmp_path / "cold", progress=False).exists()
