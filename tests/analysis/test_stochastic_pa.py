@@ -59,17 +59,17 @@ def test_noisy_run_keeps_the_area_exactly_and_seeds_differ():
     assert np.allclose(alone.Delta_2[0], run.Delta_2[0], rtol=1e-8, atol=0)
 
 
-def _equilibrium_ratio(n_steps=10000):
-    # 16 seeds x 2 (in tau) = 16 x 80 relaxation times of the slowest mode, 1/lam_2 = 0.05 at <sigma> ~ 41
-    eq = SP.equilibrium(0.04, l_max=16, seeds=range(16), ds=2e-4, n_steps=n_steps, burn_in=500)
+def _equilibrium_ratio(n_steps=5000):
+    # 32 seeds x 2 (in tau) = 32 x 40 relaxation times of the slowest mode, 1/lam_2 = 0.05 at <sigma> ~ 41
+    eq = SP.equilibrium(0.04, l_max=16, seeds=range(32), ds=4e-4, n_steps=n_steps, burn_in=250)
     theory = SP.equilibrium_variance(eq["l"][2:], eq["sigma_mean"], 0.04)
     return eq, eq["var"][2:] / theory, eq["var_se"][2:] / theory
 
 
 def test_equilibrium_spectrum_is_equipartition_at_the_mean_tension():
     """S = 0, kT/kappa = 0.0405, Delta = 0.04: <|u_lm|^2> = kT / (kappa Delta [l(l+1) + <sigma>]) for every l
-    within 10% (the issue's bound; the sampling error is 1-2.5% at l = 2-4) and <sigma> within 5% of the
-    mean-field tension. (The measured ratios sit ~1-2% below 1 at l = 3-8: docs/thermal.md, section 6.)"""
+    within 10% (the issue's bound; the sampling error is ~1.3% at l = 2) and <sigma> within 5% of the mean-field
+    tension. (l = 2-3 sit 2-5% low, more than the exact fixed-area ensemble's 2%: docs/thermal.md, section 6.)"""
     eq, ratio, se = _equilibrium_ratio()
     assert np.all(np.abs(ratio - 1) < 0.10), ratio
     assert np.all(se < 0.03), se
@@ -85,7 +85,7 @@ def test_equilibrium_check_rejects_a_wrong_noise(monkeypatch):
         return SP._Rates(r.G, r.A, 2 * r.D)
 
     monkeypatch.setattr(SP._Rates, "build", doubled)
-    _, ratio, _ = _equilibrium_ratio(n_steps=3000)
+    _, ratio, _ = _equilibrium_ratio(n_steps=2000)
     assert np.mean(np.abs(ratio - 1) > 0.10) > 0.9
 
 
