@@ -291,6 +291,7 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
     y = np.asarray(ds[measure].values, dtype=float)
     keys = sorted({_group_key(d) for d in delta})
     N = np.asarray(ds["N"].values, dtype=int) if "N" in ds.variables else np.zeros(len(S), dtype=int)
+    kT = np.asarray(ds["kT"].values, dtype=float) if "kT" in ds.variables else np.zeros(len(S))
     finest = {k: N[(kind == "simulation") & np.array([_group_key(d) == k for d in delta])].max(initial=0)
               for k in keys}
     shown = (kind != "simulation") | np.array([N[i] == finest[_group_key(d)] for i, d in enumerate(delta)])
@@ -301,11 +302,16 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
     for k in keys:
         for knd, marker, face, name in (("simulation", "o", None, "IBM"), ("theory", "s", "none", "PA")):
             sel = ok & (kind == knd) & np.array([_group_key(d) == k for d in delta])
-            if not sel.any():
-                continue
             grid = f", N = {finest[k]}" if knd == "simulation" and finest[k] > 0 else ""
-            ax.plot(S[sel], y[sel], marker=marker, ls="none", ms=7, color=colour[k],
-                    mfc=colour[k] if face is None else "none", label=f"{name}, $\\Delta$ = {k:g}{grid}")
+            # noisy runs (an ensemble's members) as small faded points beside the deterministic ones
+            for hot in (False, True):
+                part = sel & ((kT > 0) == hot)
+                if not part.any():
+                    continue
+                note = f", kT = {kT[part].max():g} (each seed)" if hot else ""
+                ax.plot(S[part], y[part], marker=marker, ls="none", ms=4 if hot else 7, color=colour[k],
+                        alpha=0.45 if hot else 1.0, mfc=colour[k] if face is None else "none",
+                        label=f"{name}, $\\Delta$ = {k:g}{grid}{note}")
     _draw_ensembles(ax, ds, measure, colour, finest)
     if "group" in ds.dims:
         gk = np.asarray(ds["group_kind"].values).astype(str)
@@ -325,6 +331,8 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
                 continue
             xs = np.geomspace(S[sel].min(), S[sel].max(), 50)
             name = "IBM" if gk[i] == "simulation" else "PA"
+            if "group_kT" in ds.variables and float(ds["group_kT"].values[i]) > 0:
+                name += f" (kT = {float(ds['group_kT'].values[i]):g})"
             conf = float(ds.attrs.get("confidence", 0.95))
             ax.plot(xs, c * xs**b, color=colour.get(k, "k"), ls="-" if gk[i] == "simulation" else "--", lw=1.2,
                     label=f"{name} fit: $S^{{{b:.3f}}}$, {conf:.0%} CI [{lo:.3f}, {hi:.3f}]")
