@@ -253,6 +253,11 @@ def _group_key(delta):
     return float(f"{float(delta):.4g}")
 
 
+def _source_name(kind, kT=0.0):
+    """IBM or PA, with the temperature of a noisy group."""
+    return ("IBM" if kind == "simulation" else "PA") + (f" (kT = {kT:g})" if kT > 0 else "")
+
+
 def _draw_ensembles(ax, ds, measure, colour, finest):
     """Mean +- sd over the noise seeds at each S of an ensemble (fit's ``point`` dimension, > 1 seed)."""
     if "point" not in ds.dims or f"point_{measure}_mean" not in ds.variables:
@@ -330,9 +335,7 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
             if sel.sum() < 2:
                 continue
             xs = np.geomspace(S[sel].min(), S[sel].max(), 50)
-            name = "IBM" if gk[i] == "simulation" else "PA"
-            if "group_kT" in ds.variables and float(ds["group_kT"].values[i]) > 0:
-                name += f" (kT = {float(ds['group_kT'].values[i]):g})"
+            name = _source_name(gk[i], float(ds["group_kT"].values[i]) if "group_kT" in ds.variables else 0.0)
             conf = float(ds.attrs.get("confidence", 0.95))
             ax.plot(xs, c * xs**b, color=colour.get(k, "k"), ls="-" if gk[i] == "simulation" else "--", lw=1.2,
                     label=f"{name} fit: $S^{{{b:.3f}}}$, {conf:.0%} CI [{lo:.3f}, {hi:.3f}]")
