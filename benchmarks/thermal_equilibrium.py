@@ -9,8 +9,8 @@ at 16). Printed per l:
 
 * <|u_lm|^2> (frames and m averaged) over kT / (kappa Delta [l(l+1) + sigma_bar]), sigma_bar the run's mean
   tension over the same frames (the trajectory's ``tension``), with the standard error of 8 time blocks;
-* the same over the exact fixed-area ensemble is not applied here (it is a < 2% effect at l = 2 for ~150 modes,
-  benchmarks/stochastic_pa.py);
+* the same at the tension the mode feels, <sigma |u_l|^2> / <|u_l|^2> over the frames (the power-weighted
+  tension; it exceeds the plain mean when the constraint's tension correlates with the amplitudes);
 * the autocorrelation time of Re/Im u_lm (m > 0): the lag at which the normalised autocorrelation, averaged over
   m, first falls below 1/e (interpolated), against the deterministic relaxation time of the same discretisation,
   1 / (r_l A_l [l(l+1) + sigma_bar]), with r_l the resolution table's rate ratio measured on the run's own N, L,
@@ -92,9 +92,15 @@ def main():
           "| r_l measured | 1/(r_l A_l (l(l+1)+sigma_bar)) | ratio | same with the fitted r_l |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     blocks = np.array_split(np.arange(u.shape[0]), 8)
+    eff = []
     for l in range(2, L + 1):
         p = np.abs(u[:, l, L - l: L + l + 1]) ** 2
         mean = float(p.mean())
+        # the tension the mode feels: its frames weighted by the mode's power (the constraint pulls hardest when
+        # the modes are large, so this exceeds the plain mean when tension and amplitude correlate)
+        pf = p.sum(axis=1)
+        s_eff = float((sig * pf).sum() / pf.sum())
+        eff.append((l, s_eff, mean / (kT / (delta * (l * (l + 1) + s_eff)))))
         se = float(np.std([p[b].mean() for b in blocks], ddof=1) / np.sqrt(len(blocks)))
         th = kT / (delta * (l * (l + 1) + sbar))
         xs = np.concatenate([u[:, l, L + 1: L + l + 1].real, u[:, l, L + 1: L + l + 1].imag], axis=1)
@@ -104,6 +110,11 @@ def main():
         tm = 1.0 / (rl * float(a_l(l)) * (l * (l + 1) + sbar))
         print(f"| {l} | {mean:.4e} | {th:.4e} | {mean / th:.3f} | {se / th:.3f} | {tc:.4g} | {rl:.3f} | {tm:.4g} "
               f"| {tc / tm:.2f} | {tl:.4g} |")
+    print()
+    print("| l | power-weighted tension <sigma |u_l|^2> / <|u_l|^2> | ratio at that tension |")
+    print("|---|---|---|")
+    for l, s_eff, r_eff in eff:
+        print(f"| {l} | {s_eff:.1f} | {r_eff:.3f} |")
 
 
 if __name__ == "__main__":

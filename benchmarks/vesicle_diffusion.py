@@ -1,7 +1,7 @@
 """Brownian motion of a whole vesicle in the periodic box: its centroid's diffusion against the grid's own
 translational mobility and against Hasimoto.
 
-    python benchmarks/vesicle_diffusion.py TRAJECTORY.nc [TRAJECTORY.nc ...] [--lags 1 5 20] > numbers.md
+    python benchmarks/vesicle_diffusion.py TRAJECTORY.nc [TRAJECTORY.nc ...] [--lags 0.01 0.05 0.2] > numbers.md
 
 Each trajectory is a noisy run without flow (chi = 0, kT > 0; docs/thermal.md section 7). Measured: D = MSD(lag) /
 (6 lag) of the volume centroid (overlapping windows), error bar from 8 time blocks, pooled over the files.
@@ -14,6 +14,8 @@ Predicted, from the run's own discretisation (the first file's first frame, N, L
 * R_h: the radius for which Hasimoto's D = kT / (6 pi mu R_h) [1 - 2.837297 x + (4 pi / 3) x^3 - 27.4 x^6],
   x = R_h / L, equals D_M (the vesicle's hydrodynamic radius on this grid; R = 1 is the volume radius);
 * D_H(R = 1): Hasimoto with R_h = R, for reference.
+
+Lags are in tau (rounded to whole frames of each file); the pooled row averages the files at the same lag.
 """
 
 from __future__ import annotations
@@ -76,8 +78,9 @@ def centroid_track(ds):
     return ds.t_tau.values, np.array([volume_centroid(x, f) for x in X])
 
 
-def msd_D(t, c, lag, blocks=8):
+def msd_D(t, c, lag_tau, blocks=8):
     dt = float(np.median(np.diff(t)))
+    lag = max(1, int(round(lag_tau / dt)))
     d = ((c[lag:] - c[:-lag]) ** 2).sum(-1) / (6 * lag * dt)
     parts = np.array_split(d, blocks)
     b = np.array([p.mean() for p in parts])
@@ -87,7 +90,7 @@ def msd_D(t, c, lag, blocks=8):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("trajectories", nargs="+")
-    ap.add_argument("--lags", type=int, nargs="+", default=[1, 5, 20])
+    ap.add_argument("--lags", type=float, nargs="+", default=[0.01, 0.05, 0.2], help="lags in tau")
     a = ap.parse_args()
     first = xr.open_dataset(a.trajectories[0])
     kT, L = float(first.attrs["kT"]), float(first.attrs["L"])
