@@ -116,3 +116,19 @@ def test_bad_values_name_the_parameter_and_range():
     with pytest.raises(ConfigError, match="unknown parameter"):
         P.check_all({"N": 32, "flux": 1})
     assert P.RUN["dt"].check("power") == "power" and math.isclose(P.RUN["dt"].check(1e-3), 1e-3)
+
+
+def test_a_number_that_yaml_read_as_text_gets_a_hint():
+    """PyYAML (YAML 1.1) reads `Lambda: 1.0e8` as the string '1.0e8'; the error says so and how to write it."""
+    import yaml
+
+    from vesicle_core.errors import ConfigError
+    from vesicle_core.model.run_config import RunConfig
+
+    value = yaml.safe_load("Lambda: 1.0e8")["Lambda"]
+    assert value == "1.0e8"
+    with pytest.raises(ConfigError, match=r"Lambda .*1\.0e\+8"):
+        RunConfig(Lambda=value)
+    with pytest.raises(ConfigError) as err:
+        RunConfig(dt="fast")
+    assert "YAML" not in str(err.value)  # text that is not a number gets no such hint

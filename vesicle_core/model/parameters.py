@@ -16,6 +16,16 @@ from ..errors import ConfigError, check_range
 from .resolution import DEFAULT_KERNEL, KERNELS
 
 
+def _yaml_number_hint(text) -> str:
+    """Why a number may have arrived as text: YAML 1.1 (PyYAML) reads 1.0e8 as a string, 1.0e+8 as a number."""
+    try:
+        float(text)
+    except ValueError:
+        return ""
+    return (" (a number given as text: YAML reads an exponent without a sign, 1.0e8, as a string; write 1.0e+8 "
+            "or 100000000.0)")
+
+
 @dataclass(frozen=True)
 class Parameter:
     """One parameter. kind: "float", "int", "str" (with choices), "bool"; ``nullable`` allows None ("null")."""
@@ -51,7 +61,7 @@ class Parameter:
         if isinstance(value, str):
             if value in self.also:
                 return value
-            raise ConfigError(f"{self.name} must be {self.allowed()}, got {value!r}")
+            raise ConfigError(f"{self.name} must be {self.allowed()}, got {value!r}{_yaml_number_hint(value)}")
         v = check_range(self.name, value, self.lo, self.hi, lo_open=self.lo_open, integer=self.kind == "int")
         if self.multiple_of and v % self.multiple_of:
             raise ConfigError(f"{self.name} must be a multiple of {self.multiple_of}, got {v}")
