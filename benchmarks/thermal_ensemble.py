@@ -23,9 +23,14 @@ from vesicle_core.analysis import theory as T
 from vesicle_core.data.sweep import open_sweep
 
 
+def _paths(values):
+    """The files of a stacked selection; an ensemble with fewer seeds at one S has NaN paths there (outer join)."""
+    return [str(p) for p in np.ravel(values) if isinstance(p, str) and p not in ("", "nan")]
+
+
 def _cost(paths):
     out = []
-    for p in paths:
+    for p in _paths(paths):
         with xr.open_dataset(str(p).replace("spectra.nc", "trajectory.nc")) as tr:
             a = tr.attrs
             out.append((float(a["wall_time_s"]), int(a["steps"]), int(a["stokes_solves"]),
@@ -34,7 +39,7 @@ def _cost(paths):
 
 
 def _grid(ds):
-    with xr.open_dataset(str(np.ravel(ds.path.values)[0])) as sp:
+    with xr.open_dataset(_paths(ds.path.values)[0]) as sp:
         a = sp.attrs
         return (float(a["L"]) / int(a["N"]), str(a.get("kernel", "peskin4")), str(a.get("coupling", "kernel")),
                 int(sp.sizes["l"]) - 1)
