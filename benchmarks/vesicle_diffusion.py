@@ -21,27 +21,26 @@ Lags are in tau (rounded to whole frames of each file); the pooled row averages 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 
 import numpy as np
 import xarray as xr
 from scipy.optimize import brentq
 
-from vesicle_core.geometry.surface import volume_centroid
+from vesicle_core.geometry.surface import triangle_areas, volume_centroid
 from vesicle_core.solver.backend import get_backend
 from vesicle_core.solver.ibm import Coupler, Grid
 from vesicle_core.solver.kernels import sharpening_symbol
 from vesicle_core.solver.mobility import IBMMobility
 from vesicle_core.solver.stokes import StokesSolver
-from vesicle_core.validation.stokeslet import HASIMOTO
 
-
-def hasimoto_D(kT, R_h, L):
-    x = R_h / L
-    return kT / (6 * np.pi * R_h) * (1 - HASIMOTO * x + 4 * np.pi / 3 * x**3 - 27.4 * x**6)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from thermal_diffusion import hasimoto_D  # noqa: E402
 
 
 def vertex_areas(X, f):
-    a = 0.5 * np.linalg.norm(np.cross(X[f[:, 1]] - X[f[:, 0]], X[f[:, 2]] - X[f[:, 0]]), axis=1)
+    a = triangle_areas(X, f)
     out = np.zeros(len(X))
     for k in range(3):
         np.add.at(out, f[:, k], a / 3)

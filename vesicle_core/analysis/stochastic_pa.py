@@ -80,9 +80,9 @@ class ModeTable:
         """Delta_l = sum_m |u_lm|^2 for l = 0..l_max (zero for l < 2), shape (..., l_max + 1)."""
         p = self.w * np.abs(u) ** 2
         out = np.zeros(p.shape[:-1] + (self.l_max + 1,))
-        for k in range(2, self.l_max + 1):
-            lo = k * (k + 1) // 2 - 3  # first index of l = k: sum_{j=2}^{k-1} (j+1)
-            out[..., k] = p[..., lo : lo + k + 1].sum(axis=-1)
+        # the modes are sorted by l, so one reduceat sums each l's run (l = k starts at k (k+1)/2 - 3)
+        starts = np.array([k * (k + 1) // 2 - 3 for k in range(2, self.l_max + 1)])
+        out[..., 2:] = np.add.reduceat(p, starts, axis=-1)
         return out
 
     def from_full(self, u):
