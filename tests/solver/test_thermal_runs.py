@@ -155,3 +155,47 @@ def test_a_noisy_run_that_drifts_beyond_max_drift_stops_as_unstable(tmp_path):
         run(m, cfg, tmp_path / "hot", progress=False)
     assert (tmp_path / "hot" / FAILURE).exists() and not (tmp_path / "hot" / TRAJECTORY).exists()
     assert run(m, dataclasses.replace(cfg, kT=0.0), tmp_path / "cold", progress=False).exists()
+
+
+def test_the_self_mobility_measured_from_the_noise_is_the_mobility_diagonal(thermal):
+    """E|J dU|^2 / (2 kT dt) per component is diag(M) (fluctuation-dissipation at each marker): 64 draws of
+    126 components, relative sampling sd ~1.6%, so 5% is 3 sd; a factor of 2 (the 2 in 2 kT) cannot pass."""
+    from vesicle_core.solver.fluctuations import mobility_matrix
+
+    s, integ, X, _ = thermal
+    exact = float(np.mean(np.diag(mobility_matrix(integ.mobility, s.be.asnumpy(X)))))
+    measured = integ.thermal.self_mobility(X, n_draws=64)
+    assert measured == pytest.approx(exact, rel=0.05)
+
+
+def test_the_noise_step_limit_caps_the_adaptive_step_at_the_asked_displacement():
+    """dt_noise = (noise_step h)^2 / (2 kT m_self): at that step the interpolated noise's rms displacement per
+    component is noise_step h (32 draws of 126 components: ~2% sampling sd); next_dt never exceeds it; kT = 0 has no
+    such limit."""
+    import dataclasses
+
+    from vesicle_core.solver.fluctuations import ThermalNoise
+    from vesicle_core.solver.trajectory import State
+
+    m = Mm.make_vesicle("icosphere", level=1, axes=(1.0, 0.9, 1.0))
+    cfg = RunConfig(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space="harmonic", tension_l_max=3,
+                    kT=KT, noise_seed=11, noise_step=0.05)
+    s = IBMSolver(m.faces, m.vertices, cfg)
+    integ = Inextensible(s, 1.0, X0=m.vertices)
+    dt = integ.dt_noise
+    assert 0 < dt < 1.0
+    X = s.xp.asarray(m.vertices)
+    noise = ThermalNoise(s.stokes, KT, seed=5)  # another key than the measurement's
+    integ.mobility.prepare(X)
+    disp = [s.be.asnumpy(integ.mobility.coupler.interpolate(noise.displacement(dt, k))) for k in range(32)]
+    assert float(np.sqrt(np.mean(np.square(disp)))) == pytest.approx(0.05 * cfg.h, rel=0.06)
+    _, geo = s.forces(X)
+    assert integ.next_dt(State(X=X), geo) <= dt
+    cold = Inextensible(IBMSolver(m.faces, m.vertices, dataclasses.replace(cfg, kT=0.0)), 1.0, X0=m.vertices)
+    assert cold.dt_noise == np.inf
+
+
+def test_noise_step_outside_its_range_is_refused():
+    for bad in (0.0, -0.1, 1.5):
+        with pytest.raises(ConfigError, match=r"noise_step must lie in \(0.0, 1.0\]"):
+            RunConfig(noise_step=bad)

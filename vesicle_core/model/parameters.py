@@ -399,6 +399,18 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         2**31 - 1,
     ),
     Parameter(
+        "noise_step",
+        0.04,
+        "float",
+        "thermal noise, adaptive dt: the largest rms noise displacement per step and component, in grid spacings h "
+        "(dt <= (noise_step h)^2 / (2 kT m_self), m_self the markers' self-mobility; runs stop from ~0.06 on, "
+        "benchmarks/noise_step_limit.py; 1 leaves the step to the other limits)",
+        "h",
+        0.0,
+        1.0,
+        lo_open=True,
+    ),
+    Parameter(
         "store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, node_uz)"
     ),
 )

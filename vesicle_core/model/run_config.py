@@ -58,6 +58,7 @@ class RunConfig:
     seed: int = 0
     kT: float = 0.0
     noise_seed: int = 0
+    noise_step: float = 0.04
     store_velocity: bool = False
 
     def __post_init__(self):

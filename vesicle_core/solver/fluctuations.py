@@ -103,11 +103,12 @@ class ThermalNoise:
         self.n_draws += 1
         return self._host
 
-    def displacement(self, dt, step, out=None):
+    def displacement(self, dt, step, out=None, stream=0):
         """Grid field (3, N, N, N) of the thermal displacement over dt at step ``step`` (backend array).
 
         Interpolated to any points X it has mean 0 and covariance 2 kT dt M(X); zero when kT = 0.
-        ``out``: a grid buffer to write into (as in ``StokesSolver.velocity``).
+        ``out``: a grid buffer to write into (as in ``StokesSolver.velocity``). ``stream``: the generator's
+        stream (0: the run's noise; others are independent draws of the same step).
         """
         scale = self.amplitude(dt)
         if scale == 0.0:
@@ -115,7 +116,7 @@ class ThermalNoise:
                 return self.backend.zeros(self.grid.field_shape)
             out[...] = 0
             return out
-        z = self.white(step)
+        z = self.white(step, stream)
         if self.backend.is_gpu:  # same numbers as on NumPy: drawn on the host, copied
             z = self.backend.asarray(z, dtype=self.dtype)
         return self.stokes.sqrt_velocity(z, scale, out=out)
@@ -234,6 +235,27 @@ class ThermalVelocity:
         # small against the grid spacing, large against round-off of float32 positions (~1e-7 R)
         self.delta = float(delta) if delta is not None else 1e-3 * stokes.grid.h
         self.stokes_solves = 0  # those of the drift's constrained solves (the noise itself is one FFT round trip)
+
+    def self_mobility(self, X, n_draws=4):
+        """m_self (1/mu): the markers' mean self-mobility per component, E|J dU|^2 / (3 V 2 kT dt) averaged over the
+        V markers X and ``n_draws`` independent draws (key 0 whatever the run's seed, stream 3, steps 0, 1, ...; the
+        run's noise is untouched). A function of X and the grid only, so a resumed run, and every seed of an
+        ensemble, gets the same value. Leaves the mobility prepared at X. ~ 1 / (6 pi mu a_h) with a_h the
+        coupling's hydrodynamic radius, less the periodic images."""
+        mob = self.constrained.mobility
+        xp = mob.backend.xp
+        mob.prepare(xp.asarray(X))
+        probe = ThermalNoise(self.noise.stokes, self.kT, 0)
+        total = 0.0
+        for k in range(int(n_draws)):
+            d = mob.coupler.interpolate(probe.displacement(1.0, k, stream=3))
+            total += float(xp.mean(d.astype(xp.float64) ** 2))
+        return total / int(n_draws) / (2.0 * self.kT)
+
+    def step_limit(self, X, h, max_step):
+        """Longest dt (tau) whose rms noise displacement per component, sqrt(2 kT dt m_self), is ``max_step`` h."""
+        check_range("noise_step", max_step, 0.0, None, lo_open=True)
+        return (float(max_step) * float(h)) ** 2 / (2.0 * self.kT * self.self_mobility(X))
 
     def __call__(self, X, dt, step):
         """(V, 3) backend array: noise velocity + drift at X for the step ``step`` of length dt. Leaves the mobility

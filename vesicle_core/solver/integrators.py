@@ -20,6 +20,7 @@ time-integrated displacement of eq. (29) (finite Re).
 from __future__ import annotations
 
 import abc
+import logging
 import math
 
 import numpy as np
@@ -28,6 +29,8 @@ from ..errors import ConfigError
 from ..model.flow import background_velocity
 from ..model.parameters import SCHEMES as SCHEME_NAMES
 from ..model.resolution import DEFAULT_KERNEL
+
+log = logging.getLogger("vesicle_core.solver.simulate")  # part of the run's log
 
 
 class Integrator(abc.ABC):
@@ -162,6 +165,12 @@ class Inextensible(Integrator):
         self.l_grid = math.ceil(math.pi / cfg.h)  # the shortest wave the grid can carry, in R
         self.iterations = []
         self.thermal = self._thermal() if cfg.kT > 0 else None
+        # the noise's step limit, from the reference mesh so that a resumed run gets the same one
+        self.dt_noise = math.inf
+        if self.thermal is not None and X0 is not None:
+            self.dt_noise = self.thermal.step_limit(self.solver.xp.asarray(X0), cfg.h, cfg.noise_step)
+            log.info("thermal noise: rms displacement <= %g h per step -> dt <= %.4g tau", cfg.noise_step,
+                     self.dt_noise)
 
     def _thermal(self):
         from . import membrane as B
@@ -199,7 +208,7 @@ class Inextensible(Integrator):
 
     def next_dt(self, state, geo) -> float:
         cfg = self.cfg
-        limits = [cfg.dt_safety * self.dt_bending]
+        limits = [cfg.dt_safety * self.dt_bending, self.dt_noise]
         if state.sigma is not None:
             smax = float(self.solver.xp.abs(state.sigma).max())
             if smax > 0:
