@@ -53,6 +53,7 @@ class RunConfig:
     tension_l_max: int | None = None
     mesh_ale: str = "none"
     dt_growth: float = 0.1
+    dt_strain: float = 2.0e-3
     seed_spectrum: str = "mesh"
     seed_scale: float = 1.0
     seed: int = 0

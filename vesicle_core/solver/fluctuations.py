@@ -210,7 +210,7 @@ class ConstrainedMobility:
         zero_area = xp.zeros(geo.area.shape[0], dtype=geo.area.dtype)
         if self.harmonic:
             c0 = np.zeros(self.tension.space.K)
-            return self.tension.solve(geo, W, 0.0, zero_area, self.dt, c0, seed=self.step)[2]
+            return self.tension.solve(geo, W, 0.0, zero_area, self.dt, c0, seed=self.step, warm=False)[2]
         return self.tension.solve(geo, W, 0.0, zero_area, self.dt, zero_area)[1]
 
 

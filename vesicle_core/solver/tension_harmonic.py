@@ -21,7 +21,10 @@ tension of a mode Y_lm depends on l only (rotational invariance), rho_l. Here rh
 on the current shape: one Stokes solve per l (a random combination of the m of that l, Rayleigh quotient
 v.Av / v.Gv), so it carries the grid's damping of mode l and the shape's l = 0 response (zero on a sphere: a
 uniform tension moves nothing there) without a model. P = S^(1/2) G S^(1/2), S = diag(dt rho_l + 1/Lambda),
-applied with the Cholesky factor of G. rho_l is re-measured every ``refresh`` steps (l_t + 1 Stokes solves).
+applied with the Cholesky factor of G. rho_l is re-measured (l_t + 1 Stokes solves) when a warm solve needed
+``stale`` or more iterations (the shape has moved away from the one measured), and at the latest every
+``refresh`` solves. On the quasi-spherical S = 2224 case at 128^3 one measurement serves the whole run (CG mean
+1.03, max 3 either way; 533 Stokes solves against 637 with a re-measurement every 50 steps, docs/solver.md).
 Prior art: ves3d's ``DiagonalSpectral`` tension preconditioner (Malhotra, Rahimian, Zorin & Biros), a diagonal
 in spherical harmonics.
 """
@@ -36,6 +39,17 @@ from ..errors import ConfigError
 from ..geometry.surface import cross_rows
 from ..xp import to_numpy
 from .tension import SolveInfo, face_D, face_DT, pcg
+
+#: a warm solve needing this many CG iterations re-measures rho_l at the next one (warm steps need 1, max 3-5)
+STALE_ITERATIONS = 4
+#: solves after which rho_l is re-measured in any case
+STALE_REFRESH = 50
+#: rho_l of l <= EXACT_L is measured one l per Stokes solve, the higher l together in RHO_PROBES solves
+EXACT_L = 2
+RHO_PROBES = 1
+#: LSQR iterations of the ALE per step: 50, 100 and 400 hold the triangle strain alike (max 6.2e-3, S = 2224 at
+#: 128^3), 400 at 3x the time (25 s of a run against 8 s); what one step leaves, the next corrects
+ALE_ITERATIONS = 100
 
 
 def real_ylm(l_max, theta, phi):
@@ -126,7 +140,8 @@ class HarmonicTensionSolver:
     """PCG in the coefficients c (see the module docstring). Same interface as tension.TensionSolver: ``solve``
     returns the per-triangle tension B c and the velocity; ``last`` is a SolveInfo."""
 
-    def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=50, seed=0):
+    def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=STALE_REFRESH,
+                 stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0):
         if not Lambda > 0:
             raise ConfigError(f"Lambda (area-stretch modulus) must be > 0 for the tension solve, got {Lambda!r}")
         self.mobility = mobility
@@ -136,6 +151,10 @@ class HarmonicTensionSolver:
         self.tol = float(tol)
         self.maxiter = int(maxiter)
         self.refresh = int(refresh)
+        self.stale = int(stale)
+        self.probes = int(probes)
+        exact = min(space.l_max, EXACT_L)
+        self.rho_solves = exact + 1 + (self.probes if space.l_max > exact else 0)  # Stokes solves per measurement
         self.rng = np.random.default_rng(seed)
         self.area = float(space.W.sum())
         self.rho = None  # measured area rate per unit tension per l (rho_l), at the last refresh
@@ -159,16 +178,33 @@ class HarmonicTensionSolver:
         return dt * rate + self.space.G @ c / self.Lambda, q
 
     def measure_rho(self, geo, seed=None):
-        """rho_l = v.(B^T D M D^T B) v / v.G v for a random v in the span of each l's harmonics (l_t + 1 solves);
-        ``seed``: the draw (the step number in runs, so that a resumed run measures what the first call did)."""
+        """rho_l = v.(B^T D M D^T B) v / v.G v for a random v in the span of each l's harmonics; ``seed``: the draw
+        (the step number in runs, so that a resumed run measures what the first call did).
+
+        l <= EXACT_L one Stokes solve each; the higher l share ``probes`` solves: v is random over all of them and
+        rho_l is read off the block of l, v_l.(A v) / v_l.(G v). The cross terms v_l.A v_l' (l' != l) vanish on a
+        sphere, where A is diagonal in l, and average out over the 2 l + 1 coefficients of a block elsewhere; the
+        low l, whose rates are the smallest (rho_0 ~ 0.01 of the others) and the shape couples most, are measured
+        alone."""
         sp = self.space
         rng = self.rng if seed is None else np.random.default_rng(seed)
         rho = np.empty(sp.l_max + 1)
-        for l in range(sp.l_max + 1):
+        exact = min(sp.l_max, EXACT_L)
+        for l in range(exact + 1):
             v = np.where(sp.l == l, rng.standard_normal(sp.K), 0.0)
             rate, _ = self.apply_rate(v, geo)
             rho[l] = float(v @ rate) / float(v @ (sp.G @ v))
-        self.extra_solves += sp.l_max + 1
+        if sp.l_max > exact:
+            num = np.zeros(sp.l_max + 1)
+            den = np.zeros(sp.l_max + 1)
+            high = sp.l > exact
+            for _ in range(self.probes):
+                v = np.where(high, rng.standard_normal(sp.K), 0.0)
+                rate, _ = self.apply_rate(v, geo)
+                np.add.at(num, sp.l, v * rate)
+                np.add.at(den, sp.l, v * (sp.G @ v))
+            rho[exact + 1:] = num[exact + 1:] / den[exact + 1:]
+        self.extra_solves += self.rho_solves
         self.refreshes += 1
         # a mode no flow can change (rho <= 0 only by round-off; the sphere's l = 0) is held by the compliance
         self.rho = np.maximum(rho, 0.0)
@@ -183,9 +219,11 @@ class HarmonicTensionSolver:
         return math.sqrt(max(float(r @ self.space.G_solve(r)), 0.0) / self.area)
 
     # ------------------------------------------------------------------ the solve
-    def solve(self, geo, F, u_inf, area_error, dt, c0, seed=None):
+    def solve(self, geo, F, u_inf, area_error, dt, c0, seed=None, warm=True):
         """Coefficients c, per-triangle tension B c and velocity U (V, 3) of one step; the mobility must be prepared
-        at geo's positions. Raises NumericalInstability when PCG does not converge."""
+        at geo's positions. Raises NumericalInstability when PCG does not converge. ``warm``: c0 is a prediction of
+        the answer (a step's solve), so that many iterations mean a stale rho_l; the thermal drift's solves from
+        c0 = 0 pass False."""
         sp = self.space
         if self.rho is None or self._uses >= self.refresh:
             self.measure_rho(geo, seed)
@@ -196,6 +234,8 @@ class HarmonicTensionSolver:
         c, U, it, res, res0 = pcg(c, U, r, lambda p: self.operator(p, geo, dt), lambda r: self.precondition(r, dt),
                                   lambda a, b: float(a @ b), self.strain_rms, self.tol, self.maxiter)
         self.last = SolveInfo(it, res, res0)
+        if warm and it >= self.stale:  # the preconditioner no longer fits the shape: re-measure at the next call
+            self._uses = self.refresh
         return c, self._xp_faces(c), U
 
 
@@ -242,7 +282,7 @@ class AreaALE:
     point sits where (an arbitrary Lagrangian-Eulerian mesh). ``damp`` keeps w small where no vertex motion
     reaches an area pattern (the triangle space's near-null modes)."""
 
-    def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=400, max_step=0.05):
+    def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=ALE_ITERATIONS, max_step=0.05):
         self.space = space
         self.max_step = float(max_step)  # largest |w| per step, in h: the rest is left to the next steps
         self.capped = 0
