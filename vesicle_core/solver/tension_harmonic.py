@@ -43,7 +43,9 @@ from .tension import SolveInfo, face_D, face_DT, pcg
 #: a warm solve needing this many CG iterations re-measures rho_l at the next one (warm steps need 1, max 3-5)
 STALE_ITERATIONS = 4
 #: solves after which rho_l is re-measured in any case
-STALE_REFRESH = 50
+RHO_REFRESH = 50
+#: fewest solves between two re-measurements that iteration counts asked for
+STALE_GAP = 10
 #: rho_l of l <= EXACT_L is measured one l per Stokes solve, the higher l together in RHO_PROBES solves
 EXACT_L = 2
 RHO_PROBES = 1
@@ -140,7 +142,7 @@ class HarmonicTensionSolver:
     """PCG in the coefficients c (see the module docstring). Same interface as tension.TensionSolver: ``solve``
     returns the per-triangle tension B c and the velocity; ``last`` is a SolveInfo."""
 
-    def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=STALE_REFRESH,
+    def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=RHO_REFRESH,
                  stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0):
         if not Lambda > 0:
             raise ConfigError(f"Lambda (area-stretch modulus) must be > 0 for the tension solve, got {Lambda!r}")
@@ -234,7 +236,9 @@ class HarmonicTensionSolver:
         c, U, it, res, res0 = pcg(c, U, r, lambda p: self.operator(p, geo, dt), lambda r: self.precondition(r, dt),
                                   lambda a, b: float(a @ b), self.strain_rms, self.tol, self.maxiter)
         self.last = SolveInfo(it, res, res0)
-        if warm and it >= self.stale:  # the preconditioner no longer fits the shape: re-measure at the next call
+        if warm and it >= self.stale and self._uses >= STALE_GAP:
+            # the preconditioner no longer fits the shape: re-measure at the next call (not again within STALE_GAP
+            # solves, where a fresh measurement did not help: l_t near the resolvable l needs 4-22 iterations anyway)
             self._uses = self.refresh
         return c, self._xp_faces(c), U
 
