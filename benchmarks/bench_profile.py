@@ -49,8 +49,9 @@ def stage(path, name):
 
 def main(N=256, n_vertices=10242, steps=15, **extra):
     mesh = M.make_vesicle("quasiuniform", n_vertices=n_vertices, axes=(1.0, 0.8, 1.0))
+    extra.setdefault("fft_workers", 1)
     cfg = RunConfig(chi=267.8, N=N, stretch=1.0, t_end=1.0, output_every=0.02, scheme="inextensible",
-                    dtype="float32", fft_workers=1, **extra)
+                    dtype="float32", **extra)
     pr = cProfile.Profile()
     t = time.perf_counter()
     with tempfile.TemporaryDirectory() as d:

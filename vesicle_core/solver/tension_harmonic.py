@@ -18,13 +18,13 @@ changes outside the space are not held: the vertices can slide tangentially on t
 
 Preconditioner ("diagonal in l", the quasi-spherical vesicle's own operator): on a sphere the area rate per unit
 tension of a mode Y_lm depends on l only (rotational invariance), rho_l. Here rho_l is measured on the IBM itself,
-on the current shape: one Stokes solve per l (a random combination of the m of that l, Rayleigh quotient
-v.Av / v.Gv), so it carries the grid's damping of mode l and the shape's l = 0 response (zero on a sphere: a
-uniform tension moves nothing there) without a model. P = S^(1/2) G S^(1/2), S = diag(dt rho_l + 1/Lambda),
-applied with the Cholesky factor of G. rho_l is re-measured (l_t + 1 Stokes solves) when a warm solve needed
-``stale`` or more iterations (the shape has moved away from the one measured), and at the latest every
-``refresh`` solves. On the quasi-spherical S = 2224 case at 128^3 one measurement serves the whole run (CG mean
-1.03, max 3 either way; 533 Stokes solves against 637 with a re-measurement every 50 steps, docs/solver.md).
+on the current shape (Rayleigh quotients v.Av / v.Gv of random v: one Stokes solve for each l <= EXACT_L, one shared
+by the higher l, read off block by block; see ``measure_rho``), so it carries the grid's damping of mode l and the
+shape's l = 0 response (zero on a sphere: a uniform tension moves nothing there) without a model.
+P = S^(1/2) G S^(1/2), S = diag(dt rho_l + 1/Lambda), applied with the Cholesky factor of G. rho_l is re-measured
+every ``refresh`` solves, and early when a warm solve needed ``stale`` or more iterations (the shape has moved away
+from the one measured). Measured (docs/solver.md, "Fewer solves per step"): 4 solves a measurement instead of
+l_t + 1, 547 Stokes solves in the S = 2224 run at 128^3 against 635, 649 against 856 at 256^3.
 Prior art: ves3d's ``DiagonalSpectral`` tension preconditioner (Malhotra, Rahimian, Zorin & Biros), a diagonal
 in spherical harmonics.
 """
