@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-import yaml
 
 sys.path.insert(0, str(Path(__file__).parent))
+from bench_schemes import run_overrides  # noqa: E402
 from bench_tension_space import analyse  # noqa: E402
 
 from vesicle_core.analysis.spectra import spectra_from_trajectory  # noqa: E402
@@ -64,14 +64,7 @@ def main():
     patch(a)
     kw = dict(chi=a.chi, N=a.N, scheme="inextensible", tension_space="harmonic", mesh_ale="area", dtype="float32",
               stretch=1.0, t_end=1.0, output_every=0.02, fft_workers=2)
-    for kv in a.set:
-        k, _, v = kv.partition("=")
-        v = yaml.safe_load(v)
-        try:  # PyYAML reads 1e-6 (no dot) as a string
-            v = float(v) if isinstance(v, str) else v
-        except ValueError:
-            pass
-        kw[k] = v
+    kw.update(run_overrides(a.set))
     mesh = M.make_vesicle("quasiuniform", n_vertices=10 * 4**a.level + 2, target_delta=a.delta)
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()

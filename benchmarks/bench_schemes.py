@@ -66,20 +66,27 @@ def inextensibility(ds):
             "checkerboard_median": float(np.median(r[w, 4]))}
 
 
-def one(label, mesh, a, outdir):
-    head, *sets = label.split("+")
-    scheme, _, precond = head.partition("/")
-    kw = {"Lambda": a.lambda_explicit} if scheme == "explicit" and a.lambda_explicit else {}
-    if precond:
-        kw["cg_precond"] = precond
-    for kv in sets:  # run parameters after a plus: inextensible+cg_tol=1e-6
+def run_overrides(items):
+    """{name: value} of KEY=VALUE strings, values read as YAML (numbers, null, booleans)."""
+    out = {}
+    for kv in items:
         k, _, v = kv.partition("=")
         v = yaml.safe_load(v)
         try:  # PyYAML reads 1e-6 (no dot) as a string
             v = float(v) if isinstance(v, str) else v
         except ValueError:
             pass
-        kw[k] = v
+        out[k] = v
+    return out
+
+
+def one(label, mesh, a, outdir):
+    head, *sets = label.split("+")
+    scheme, _, precond = head.partition("/")
+    kw = {"Lambda": a.lambda_explicit} if scheme == "explicit" and a.lambda_explicit else {}
+    if precond:
+        kw["cg_precond"] = precond
+    kw.update(run_overrides(sets))  # run parameters after a plus: inextensible+cg_tol=1e-6
     cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
                     fft_workers=a.fft_workers, dtype=a.dtype, **kw)
     t = time.perf_counter()
