@@ -4,7 +4,8 @@ be measured against the earlier ones in one session.
 
 Run by hand:
     python benchmarks/bench_harmonic_step.py [--level 4] [--delta 0.116] [--N 128] [--chi 268.2]
-        [--ale-iterations 100] [--rho per-l|probe] [--rho-refresh 50] [--rho-stale 4] [--set dt_strain=1 ...]
+        [--ale-iterations 100] [--ale-cap 0.05] [--rho per-l|probe] [--rho-refresh 50] [--rho-stale 4]
+        [--set dt_strain=1 ...]
 
 The case: a quasi-uniform mesh of 10 4^level + 2 vertices with excess area Delta, `scheme: inextensible`,
 `tension_space: harmonic`, `mesh_ale: area`, float32, two FFT threads, 1 + 1 strain units (override any run
@@ -42,7 +43,7 @@ from vesicle_core.solver.simulate import run  # noqa: E402
 def patch(a):
     """Set the solver's constants for this process: the ALE's LSQR iterations and the rho_l measurement."""
     TH.ALE_ITERATIONS = a.ale_iterations
-    TH.AreaALE.__init__.__defaults__ = (1e-3, a.ale_iterations, 0.05)
+    TH.AreaALE.__init__.__defaults__ = (1e-3, a.ale_iterations, a.ale_cap)
     if a.rho == "per-l":
         TH.EXACT_L = 10**6
     TH.HarmonicTensionSolver.__init__.__defaults__ = (1e-5, 200, a.rho_refresh, a.rho_stale, TH.RHO_PROBES, 0)
@@ -55,6 +56,8 @@ def main():
     ap.add_argument("--N", type=int, default=128)
     ap.add_argument("--chi", type=float, default=268.2)
     ap.add_argument("--ale-iterations", type=int, default=TH.ALE_ITERATIONS)
+    ap.add_argument("--ale-cap", type=float, default=TH.AreaALE.__init__.__defaults__[2],
+                    help="largest tangential ALE step per step, in h")
     ap.add_argument("--rho", choices=("probe", "per-l"), default="probe")
     ap.add_argument("--rho-refresh", type=int, default=TH.RHO_REFRESH)
     ap.add_argument("--rho-stale", type=int, default=TH.STALE_ITERATIONS)
