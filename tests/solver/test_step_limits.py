@@ -20,7 +20,8 @@ from vesicle_core.solver.trajectory import State
 def test_linearisation_strain_is_second_order_in_the_step(space):
     """One step from the same state with dt and dt / 2: the held strain it adds beyond sigma / Lambda falls 4x."""
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space=space, cg_tol=1e-11, cg_maxiter=500)
+    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space=space, cg_tol=1e-11, cg_maxiter=500,
+                    mesh_ale="area" if space == "harmonic" else "none")  # the ALE's own motion is not counted
     s = IBMSolver(m.faces, m.vertices, cfg)
     integ = Inextensible(s, 1.0, X0=m.vertices)
     X = s.xp.asarray(m.vertices)
@@ -28,9 +29,8 @@ def test_linearisation_strain_is_second_order_in_the_step(space):
     errs = []
     for dt in (8e-4, 4e-4, 2e-4):
         state = State(X=X)
-        dX = integ.step(state, X, F, geo, dt, 50.0)
-        _, geo1 = s.forces(X + dX)
-        errs.append(integ.linearisation_strain(state, geo1))
+        integ.step(state, X, F, geo, dt, 50.0)
+        errs.append(state.strain_err)
     assert errs[-1] > 1e-7  # well above the CG's residual and round-off
     for a, b in zip(errs[:-1], errs[1:], strict=True):
         assert 3.3 < a / b < 4.7, errs  # dt^2 (a first-order error would halve)

@@ -219,22 +219,22 @@ class Inextensible(Integrator):
         if cfg.chi > 0:
             # the background flow strains the vesicle by dt_growth / 10 per step (1% at the default 0.1)
             limits.append(0.1 * cfg.dt_growth / cfg.chi)
-        if self.thermal is None and state.sigma is not None and state.dt_steps:
+        if state.strain_err > 0 and state.dt_steps:
             # the last step's second-order area change, which the linearised constraint leaves: it scales as dt^2
-            # (the noise's would scale as dt, so noisy runs are left to noise_step)
-            err = self.linearisation_strain(state, geo)
-            if err > 0:
-                limits.append(state.dt_steps[-1] * math.sqrt(cfg.dt_strain / err))
+            limits.append(state.dt_steps[-1] * math.sqrt(cfg.dt_strain / state.strain_err))
         return min(limits)
 
-    def linearisation_strain(self, state, geo) -> float:
-        """Largest strain of the held area (per triangle, or its W-projection on the harmonic space) beyond the
-        compliance sigma / Lambda the last solve prescribed: the area change the step's linearisation missed."""
+    def linearisation_strain(self, sigma, X) -> float:
+        """Largest strain of the held area (per triangle, or its W-projection on the harmonic space) at positions X
+        beyond the compliance sigma / Lambda the solve prescribed: the area change the step's linearisation
+        missed, when X is the step's end."""
+        from ..geometry.surface import triangle_areas
+
         be = self.solver.be
         A0 = be.asnumpy(self.solver.membrane.ref.face_area)
-        e = be.asnumpy(geo.area) / A0 - 1.0
+        e = triangle_areas(be.asnumpy(X), be.asnumpy(self.solver.membrane.topo.faces)) / A0 - 1.0
         held = e if self.space is None else self.space.project_faces(e)
-        return float(np.abs(held - be.asnumpy(state.sigma) / self.cfg.Lambda_eff).max())
+        return float(np.abs(held - be.asnumpy(sigma) / self.cfg.Lambda_eff).max())
 
     def step(self, state, X, F, geo, dt, rate):
         cfg, xp = self.cfg, self.solver.xp
@@ -264,6 +264,10 @@ class Inextensible(Integrator):
         state.sigma = sigma
         state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
         self.iterations.append(self.tension.last.iterations)
+        # measured on the membrane's own displacement, before the ALE's tangential one: that one is not a step of
+        # the dynamics and does not shrink with dt (the noise's area change scales as dt, so noisy runs are left to
+        # noise_step)
+        state.strain_err = self.linearisation_strain(sigma, X + U * dt) if self.thermal is None else 0.0
         if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
             return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area)
         return U * dt

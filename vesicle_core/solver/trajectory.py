@@ -61,6 +61,7 @@ class State:
     wall_s: float = 0.0  # wall time of the earlier calls of a resumed run (s)
     tension_rho: object = None  # tension_space harmonic: the measured area rate per l of the last refresh
     tension_rho_age: int = 0  # steps since that refresh
+    strain_err: float = 0.0  # inextensible: the last step's linearisation strain (dt_strain), before any ALE motion
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -85,7 +86,7 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
         "n_frames": state.n_frames, "next_output": state.next_output, "dt": state.dt,
         "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
         "next_output_t": state.next_output_t, "seed_l_max": state.seed_l_max, "wall_s": state.wall_s,
-        "tension_rho_age": state.tension_rho_age,
+        "tension_rho_age": state.tension_rho_age, "strain_err": state.strain_err,
     }
     if state.dt_steps:  # netCDF attributes cannot be empty
         attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
@@ -114,6 +115,7 @@ def load_checkpoint(path: Path, xp):
         cg_iterations=[int(v) for v in ds["cg_iterations"].values] if "cg_iterations" in ds else [],
         tension_rho=ds["tension_rho"].values.copy() if "tension_rho" in ds else None,
         tension_rho_age=int(a.get("tension_rho_age", 0)),
+        strain_err=float(a.get("strain_err", 0.0)),
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
