@@ -157,6 +157,7 @@ class Inextensible(Integrator):
                                         refresh=cfg.projection_refresh)
         self.space = None
         self.ale = None
+        self._ref_host = None  # reference triangle areas and faces on the host (linearisation_strain)
         if cfg.tension_space == "harmonic":
             self.tension = self._harmonic_solver()
         else:
@@ -231,8 +232,11 @@ class Inextensible(Integrator):
         from ..geometry.surface import triangle_areas
 
         be = self.solver.be
-        A0 = be.asnumpy(self.solver.membrane.ref.face_area)
-        e = triangle_areas(be.asnumpy(X), be.asnumpy(self.solver.membrane.topo.faces)) / A0 - 1.0
+        if self._ref_host is None:  # constant: copied off the device once, not every step
+            mem = self.solver.membrane
+            self._ref_host = (be.asnumpy(mem.ref.face_area), be.asnumpy(mem.topo.faces))
+        A0, faces = self._ref_host
+        e = triangle_areas(be.asnumpy(X), faces) / A0 - 1.0
         held = e if self.space is None else self.space.project_faces(e)
         return float(np.abs(held - be.asnumpy(sigma) / self.cfg.Lambda_eff).max())
 
