@@ -37,6 +37,16 @@ Quadrature (documented choices; measured in tests/analysis/test_harmonics.py)
   pn 1.5e-2, vertex 1e-3, centroid 1.1e-1. On the smooth 1:0.8:1 ellipsoid (level 5, l_max = 64) the spurious
   Delta_l at l = 40 is 1e-6 (pn), 5e-3 (vertex), 5e-4 (centroid), so only pn gives the l_* of a smooth
   ellipsoid as ~ 4 (its own l = 4 content), where vertex / centroid give 9 / 5.
+* Fit, ``fit=``: ``"quadrature"`` (default) is the sum above, eq. (30) as printed. Its weights integrate products
+  of Y_lm exactly only on regular nodes: on the quasi-uniform meshes (irregular by design) the smooth 1:0.8:1
+  ellipsoid shows Delta_l = 2e-4 at l = 40 and 1.5e-3 at l = 48 (5351 vertices; 1.3e-5 and 1.3e-4 at 9512),
+  against 9e-7 and 2e-6 on the level-5 icosphere. That floor is there before any dynamics and sits above a
+  thermal seed's Delta_l (~1e-6) in the wrinkle band. ``"least_squares"`` fits the coefficients up to l_max in
+  the weighted least-squares sense (:func:`~vesicle_core.geometry.ylm.fit_least_squares`, quadrature-
+  preconditioned sweeps, 3-4 of them): the same ellipsoid's floor falls to 2e-8 and 6e-8, and its own l = 6-10
+  content matches a 40962-vertex icosphere where the quadrature misses l = 8 by 18% (tests). It costs ~4x the
+  quadrature. At t_* the wrinkles dwarf the floor: l_* of the S = 2224 run at 256^3 (10242 vertices) is
+  26.17 by quadrature and 26.18 by least squares (docs/solver.md, "Wrinkling ladders with the sharp coupling").
 
 The fitted ellipsoid, the wrinkle amplitude A_p and one snapshot's whole analysis: :mod:`vesicle_core.analysis.shape`.
 """
@@ -60,7 +70,7 @@ from ..geometry.surface import (
     solid_angles,
     volume_centroid,
 )
-from ..geometry.ylm import _angles, _check_lmax, project, synthesize
+from ..geometry.ylm import _angles, _check_lmax, fit_least_squares, project, synthesize
 
 __all__ = [
     "ResolutionWarning",
@@ -80,6 +90,10 @@ __all__ = [
 
 WEIGHTS = ("solid_angle", "paper")
 RULES = ("pn", "vertex", "centroid")
+#: how coefficients are read off the nodes: the quadrature sum of eq. (30), or the weighted least-squares fit
+#: (:func:`~vesicle_core.geometry.ylm.fit_least_squares`) that removes the quadrature's aliasing floor on
+#: irregular meshes (module docstring, "Fit")
+FITS = ("quadrature", "least_squares")
 #: |u_lm| above which a mode counts as nontrivial: the l_max of Sec. V.A is the largest such l at t_*
 NONTRIVIAL_THRESHOLD = 1e-5
 METHODS = ("eq31", "peak")  # of characteristic_l: eq. (31) or the dominant mode (Sec. V.A)
@@ -186,12 +200,13 @@ def _warn_resolution(v, f, R, l_max, stacklevel=3):
 
 
 def decompose(vertices, faces, l_max, delta=None, R=None, center=None, *, rule="pn",
-              weights="solid_angle") -> np.ndarray:
+              weights="solid_angle", fit="quadrature") -> np.ndarray:
     """Scaled amplitudes u_lm of eq. (30), complex (l_max+1, 2 l_max+1), index [l, l_max + m].
 
     delta: the vesicle's excess area Delta of the scale factor sqrt((l-1)(l+2)/Delta) (default: this mesh's own
     A/R^2 - 4 pi). R: reference radius (default: equivalent radius from the enclosed volume). center: default the
-    volume centroid. rule / weights: see the module docstring. l = 0, 1 entries are the unscaled coefficients.
+    volume centroid. rule / weights: see the module docstring. fit: ``quadrature`` (eq. 30 as printed) or
+    ``least_squares`` (:func:`fit_coefficients`). l = 0, 1 entries are the unscaled coefficients.
     Warns (ResolutionWarning) if l_max exceeds :func:`resolvable_l_max`.
     """
     l_max = _check_lmax(l_max)
@@ -200,8 +215,17 @@ def decompose(vertices, faces, l_max, delta=None, R=None, center=None, *, rule="
     _warn_resolution(v, f, q.R, l_max)
     if delta is None:
         delta = q.areas.sum() / q.R**2 - 4.0 * math.pi
-    c = project((q.radius - q.R) / q.R, q.theta, q.phi, q.weights, l_max)
+    c = fit_coefficients((q.radius - q.R) / q.R, q, l_max, fit)
     return c * scale_factors(l_max, delta)[:, None]
+
+
+def fit_coefficients(values, q: Quadrature, l_max, fit="quadrature"):
+    """Coefficients up to l_max of real node values (N,) or (k, N) on the quadrature q: the quadrature sum
+    (``fit="quadrature"``, eq. 30) or its weighted least-squares refinement (``"least_squares"``)."""
+    check_choice("fit", fit, FITS)
+    if fit == "quadrature":
+        return project(values, q.theta, q.phi, q.weights, l_max)
+    return fit_least_squares(values, q.theta, q.phi, q.weights, l_max)[0]
 
 
 def delta_l(u) -> np.ndarray:

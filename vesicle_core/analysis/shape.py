@@ -24,6 +24,7 @@ from .harmonics import (
     _warn_resolution,
     characteristic_l,
     delta_l,
+    fit_coefficients,
     l_max_nontrivial,
     quadrature,
     scale_factors,
@@ -200,14 +201,15 @@ def amplitude_spectrum(vertices, faces, ellipsoid, l_max, center=None, R=None, *
 
 
 def analyze_snapshot(vertices, faces, l_max, delta=None, R=None, *, rule="pn", weights="solid_angle",
-                     threshold=NONTRIVIAL_THRESHOLD, warn=True) -> dict:
+                     threshold=NONTRIVIAL_THRESHOLD, warn=True, fit="quadrature") -> dict:
     """Everything Sec. V computes for one snapshot, with one pass of the harmonic recurrence for both fields.
 
     The ellipsoid is fitted to the vertices with area weights (vertex area = 1/3 of the adjacent triangles), so
     it minimises the area-weighted mean square of A_p. Returns a dict: u, Delta_l, l_max_nontrivial, l_star
     (eq. 31 up to l_max_nontrivial; NaN below 3), center, R, delta (used for scaling), delta_mesh (this
     snapshot's A/R^2 - 4 pi), ellipsoid (center, axes, rotation), A_p (per triangle, rule average), A_p_bar,
-    u_tilde, Delta_tilde, areas.
+    u_tilde, Delta_tilde, areas. fit: how both fields' coefficients are read off the nodes
+    (:func:`harmonics.fit_coefficients`).
     """
     l_max = _check_lmax(l_max)
     v, f = _as_mesh(vertices, faces)
@@ -221,7 +223,7 @@ def analyze_snapshot(vertices, faces, l_max, delta=None, R=None, *, rule="pn", w
     ell = fit_ellipsoid(v, weights=vertex_area)
     A_nodes = _radial_deviation(q.points, ell)
     A_tri = q.triangle_average(A_nodes)
-    both = project(np.stack([(q.radius - q.R) / q.R, A_nodes / q.R]), q.theta, q.phi, q.weights, l_max)
+    both = fit_coefficients(np.stack([(q.radius - q.R) / q.R, A_nodes / q.R]), q, l_max, fit)
     u = both[0] * scale_factors(l_max, delta)[:, None]
     ut = both[1]
     D = delta_l(u)

@@ -246,14 +246,17 @@ def _spectra_attrs(traj, command, **analysis):
 def spectra_from_trajectory(
     traj: xr.Dataset, l_max: int | None = None, stride: int = 1, progress: bool = False, *,
     rule: str = "pn", weights: str = "solid_angle", threshold: float = H.NONTRIVIAL_THRESHOLD,
-    delta: float | None = None, map_shape: tuple[int, int] | None = None, command: str | None = None,
+    fit: str = "quadrature", delta: float | None = None, map_shape: tuple[int, int] | None = None,
+    command: str | None = None,
 ) -> xr.Dataset:
     """Spherical-harmonic analysis (Sec. V) of every ``stride``-th snapshot of a trajectory.
 
     l_max: default the largest the mesh resolves (:func:`surface.resolvable_l_max`), capped at 64; a larger
     value warns ResolutionWarning. delta: Delta of the eq. (30) scale factor (default: the trajectory's ``delta``
     attribute, else the first snapshot's meshed excess area). rule / weights: quadrature (harmonics docstring).
-    threshold: |u_lm| above which a mode counts as nontrivial (l_max of Sec. V.A). map_shape (n_theta, n_phi):
+    fit: ``quadrature`` (eq. 30 as printed) or ``least_squares`` (removes the quadrature's aliasing floor on
+    irregular meshes at ~4x the time; :func:`harmonics.fit_coefficients`). threshold: |u_lm| above which a mode
+    counts as nontrivial (l_max of Sec. V.A). map_shape (n_theta, n_phi):
     also store A_p(theta, phi) maps synthesised from u~_lm on a cell-centred grid.
 
     Result layout -- coords: time, t_tau (if the trajectory has it), l (0..l_max), m (-l_max..l_max), axis (x, y, z),
@@ -270,7 +273,7 @@ def spectra_from_trajectory(
       centroid (time, axis), R_eq (time), Delta_mesh (time)   geometry of each snapshot
       [A_p_map (time, theta, phi)]
     attrs: the trajectory's attributes, then the CF attributes and the analysis parameters (l_max, stride, rule,
-    weights, threshold, delta_used, delta_source, resolvable_l_max). t_* is taken over the analysed (strided)
+    weights, fit, threshold, delta_used, delta_source, resolvable_l_max). t_* is taken over the analysed (strided)
     snapshots only.
     """
     sub, faces, stride = _read_snapshots(traj, stride, threshold)
@@ -278,13 +281,13 @@ def spectra_from_trajectory(
     l_max, l_res = _choose_l_max(l_max, v0, faces)
     delta_used, delta_source = _delta_from(traj, v0, faces, delta)
     grid = _map_grid(map_shape)
-    snap = _analyse_snapshots(sub, faces, v0, l_max, delta_used, grid, progress, rule=rule, weights=weights,
+    snap = _analyse_snapshots(sub, faces, v0, l_max, delta_used, grid, progress, rule=rule, weights=weights, fit=fit,
                               threshold=threshold)
     _mask_and_sum(snap, l_max)
     time = np.asarray(sub["time"].values, dtype=float)
     star = _at_t_star(sub, faces, time, snap)
     data = {**_spectral_vars(sub, snap, star, threshold), **_geometry_vars(snap)}
-    attrs = _spectra_attrs(traj, command, l_max=l_max, stride=stride, rule=rule, weights=weights,
+    attrs = _spectra_attrs(traj, command, l_max=l_max, stride=stride, rule=rule, weights=weights, fit=fit,
                            threshold=float(threshold), delta_used=delta_used, delta_source=delta_source,
                            resolvable_l_max=l_res, n_snapshots=sub.sizes["time"])
     return xr.Dataset(data, coords=_coords(sub, time, l_max, grid), attrs=attrs)
