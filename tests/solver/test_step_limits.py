@@ -57,3 +57,18 @@ def test_dt_strain_bounds_the_held_strain_of_a_run(tmp_path):
     assert worst_off > 2e-5  # the limit has something to do here
     assert worst_on <= 2e-5 * 1.5  # one step's growth of dt past the estimate at most
     assert steps_on > steps_off
+
+
+def test_a_collapsing_step_stops_the_run_and_names_its_limit(tmp_path, monkeypatch):
+    """A step-size error that does not shrink with dt (as on a folded mesh) drives dt_strain's limit down
+    geometrically. The run must stop with NumericalInstability once the step falls below DT_COLLAPSE of the bending
+    limit, naming the limit that set it, instead of creeping on (the elongated 256^3 run took 700 steps of 3e-12
+    tau)."""
+    from vesicle_core.errors import NumericalInstability
+
+    monkeypatch.setattr(Inextensible, "linearisation_strain", lambda self, sigma, X: 1.0)  # 500x dt_strain, fixed
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
+                    output_every=0.05)
+    with pytest.raises(NumericalInstability, match=r"collapsed .* \(set by the dt_strain limit\)"):
+        run(m, cfg, tmp_path / "run", progress=False)

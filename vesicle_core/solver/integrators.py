@@ -209,21 +209,22 @@ class Inextensible(Integrator):
 
     def next_dt(self, state, geo) -> float:
         cfg = self.cfg
-        limits = [cfg.dt_safety * self.dt_bending, self.dt_noise]
+        limits = {"bending": cfg.dt_safety * self.dt_bending, "noise_step": self.dt_noise}
         if state.sigma is not None:
             smax = float(self.solver.xp.abs(state.sigma).max())
             if smax > 0:
-                limits.append(cfg.dt_safety * TENSION_STABILITY[cfg.coupling] * cfg.h / smax)
+                limits["tension"] = cfg.dt_safety * TENSION_STABILITY[cfg.coupling] * cfg.h / smax
             rate, _ = fastest_growth_rate(self.sigma_mean(state, geo), self.l_grid, cfg.h, cfg.kernel, cfg.coupling)
             if rate > 0:
-                limits.append(cfg.dt_growth / rate)
+                limits["dt_growth"] = cfg.dt_growth / rate
         if cfg.chi > 0:
             # the background flow strains the vesicle by dt_growth / 10 per step (1% at the default 0.1)
-            limits.append(0.1 * cfg.dt_growth / cfg.chi)
+            limits["flow"] = 0.1 * cfg.dt_growth / cfg.chi
         if state.strain_err > 0 and state.dt_steps:
             # the last step's second-order area change, which the linearised constraint leaves: it scales as dt^2
-            limits.append(state.dt_steps[-1] * math.sqrt(cfg.dt_strain / state.strain_err))
-        return min(limits)
+            limits["dt_strain"] = state.dt_steps[-1] * math.sqrt(cfg.dt_strain / state.strain_err)
+        self.binding_limit = min(limits, key=limits.get)  # named in the error when the step collapses
+        return limits[self.binding_limit]
 
     def linearisation_strain(self, sigma, X) -> float:
         """Largest strain of the held area (per triangle, or its W-projection on the harmonic space) at positions X
