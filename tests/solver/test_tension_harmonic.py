@@ -102,6 +102,43 @@ def test_solve_meets_the_projected_constraint(setup):
     assert ts.last.iterations > 0
 
 
+def test_fixed_tension_keeps_l0_and_leaves_the_total_area_free(setup):
+    """hold_area False (tension_fixed): the l = 0 coefficient stays at c0's, the l >= 1 projection of the area change
+    is still held, and the total area takes whatever the forces and the flow give: a dilation u = eps X, which the
+    held solve cancels, then changes the area at its own rate."""
+    _, s, X, F, geo, mob, space = setup
+    topo = s.membrane.topo
+    Lam, dt, eps = 1e12, 2e-4, 0.5
+    u_dil = s.xp.asarray(eps * (X - X.mean(axis=0)))
+    err = np.zeros(geo.area.shape[0])
+    l0 = space.l == 0
+    held = HarmonicTensionSolver(mob, topo, space, Lam, tol=1e-11, maxiter=300)
+    free = HarmonicTensionSolver(mob, topo, space, Lam, tol=1e-11, maxiter=300, hold_area=False)
+    c0 = np.zeros(space.K)
+    c0[l0] = 300.0 / space.B[0, l0]  # a uniform tension of 300
+    c_h, _, U_h = held.solve(geo, F, u_dil, err, dt, np.zeros(space.K))
+    c_f, sigma_f, U_f = free.solve(geo, F, u_dil, err, dt, c0)
+    assert c_f[l0] == c0[l0] and free.last.iterations > 0
+    np.testing.assert_allclose(sigma_f - space.B[:, ~l0] @ c_f[~l0], 300.0, rtol=1e-12)  # uniform part: 300
+    rate_h = float((face_D(U_h, geo, topo)).sum())
+    rate_f = float((face_D(U_f, geo, topo)).sum())
+    rate_dil = float((face_D(u_dil, geo, topo)).sum())  # 2 eps A
+    assert abs(rate_h) <= 1e-4 * abs(rate_dil)  # held: the dilation is cancelled (up to the compliance)
+    assert abs(rate_f) > 0.2 * abs(rate_dil)  # free: the area changes (here the 300 pulls it in faster)
+    # the l >= 1 projection of the area change is still the compliance's
+    resid = space.B.T @ (dt * face_D(U_f, geo, topo)) - space.G @ c_f / Lam
+    resid[l0] = 0.0
+    assert np.sqrt(resid @ space.G_solve(resid) / space.W.sum()) <= 1e-9
+
+
+def test_tension_fixed_is_refused_outside_the_harmonic_space():
+    with pytest.raises(ConfigError, match="tension_fixed"):
+        RunConfig(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="triangle", tension_fixed=100.0)
+    with pytest.raises(ConfigError, match="tension_fixed"):
+        RunConfig(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="harmonic", tension_fixed=-1.0)
+    RunConfig(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="harmonic", tension_fixed=100.0)
+
+
 def test_inf_sup_bounded_for_harmonics_small_for_triangles():
     """The smallest singular value of D^T B (force per unit tension, continuum 2 / R) stays near 2 for the harmonic
     space up to half the resolvable l, on two meshes; the triangle space's is an order of magnitude below."""

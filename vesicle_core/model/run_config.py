@@ -52,6 +52,7 @@ class RunConfig:
     tension_space: str = "triangle"
     tension_l_max: int | None = None
     mesh_ale: str = "none"
+    tension_fixed: float | None = None
     dt_growth: float = 0.1
     dt_strain: float = 2.0e-3
     seed_spectrum: str = "mesh"
@@ -73,6 +74,10 @@ class RunConfig:
         if self.mesh_ale != "none" and self.tension_space != "harmonic":
             raise ConfigError("mesh_ale 'area' applies to tension_space 'harmonic' only (the triangle tension holds "
                               "every triangle's area itself)")
+        if self.tension_fixed is not None and (self.scheme != "inextensible" or self.tension_space != "harmonic"):
+            raise ConfigError(f"tension_fixed = {self.tension_fixed:g} needs scheme 'inextensible' with tension_space "
+                              f"'harmonic' (it fixes that space's l = 0 coefficient); got scheme '{self.scheme}', "
+                              f"tension_space '{self.tension_space}' (or set tension_fixed: null)")
         if self.chi == 0 and self.stretch > 0:
             raise ConfigError("stretch must be 0 when chi = 0 (no flow to stretch in); t_end is then in tau")
         if self.kT > 0 and self.scheme != "inextensible":

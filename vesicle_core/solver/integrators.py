@@ -199,7 +199,14 @@ class Inextensible(Integrator):
 
             self.ale = AreaALE(self.space, cfg.h)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
-                                     maxiter=cfg.cg_maxiter)
+                                     maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None)
+
+    def _start(self, c):
+        """The solve's start coefficients: c, with the prescribed uniform tension in l = 0 (tension_fixed)."""
+        if self.cfg.tension_fixed is not None:
+            l0 = self.space.l == 0
+            c[l0] = self.cfg.tension_fixed / self.space.B[0, l0]  # Y_00 is constant: B c is that tension everywhere
+        return c
 
     def sigma_mean(self, state, geo) -> float:
         if state.sigma is None:
@@ -238,8 +245,12 @@ class Inextensible(Integrator):
             self._ref_host = (be.asnumpy(mem.ref.face_area), be.asnumpy(mem.topo.faces))
         A0, faces = self._ref_host
         e = triangle_areas(be.asnumpy(X), faces) / A0 - 1.0
-        held = e if self.space is None else self.space.project_faces(e)
-        return float(np.abs(held - be.asnumpy(sigma) / self.cfg.Lambda_eff).max())
+        if self.space is None:
+            return float(np.abs(e - be.asnumpy(sigma) / self.cfg.Lambda_eff).max())
+        # the held part in coefficients (sigma = B c lies in the space); the l = 0 one only when the area is held
+        d = self.space.fit(e) - self.space.fit(be.asnumpy(sigma)) / self.cfg.Lambda_eff
+        d[~self.tension.free] = 0.0
+        return float(np.abs(self.space.faces(d)).max())
 
     def step(self, state, X, F, geo, dt, rate):
         cfg, xp = self.cfg, self.solver.xp
@@ -263,7 +274,7 @@ class Inextensible(Integrator):
         else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
             ts = self._restore_rho(state)
             _, sigma, U = ts.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt,
-                                   self.space.fit(self.solver.be.asnumpy(guess)), seed=state.step)
+                                   self._start(self.space.fit(self.solver.be.asnumpy(guess))), seed=state.step)
             state.tension_rho, state.tension_rho_age = ts.rho, ts._uses
         state.sigma_prev = state.sigma
         state.sigma = sigma

@@ -16,6 +16,13 @@ its force -D^T B c. What is constrained is the projection of the local area chan
 symmetric positive definite (G is the mass matrix of the space in the reference areas W). Triangle-scale area
 changes outside the space are not held: the vertices can slide tangentially on the mesh scale.
 
+Fixed-tension ensemble (run parameter ``tension_fixed``, ``hold_area=False``): the l = 0 coefficient is not an
+unknown but the prescribed uniform tension, so the total area is free while the l >= 1 projection of the local area
+change is still held. The CG then runs on the l >= 1 coefficients (the operator and the preconditioner restricted by
+the mask). At a fixed area the uniform tension is a Lagrange multiplier, and its mean over a noisy run is not the
+tension the shape modes feel (docs/thermal.md, section 7); at a fixed tension the equilibrium spectrum has a known
+tension to be compared with.
+
 Preconditioner ("diagonal in l", the quasi-spherical vesicle's own operator): on a sphere the area rate per unit
 tension of a mode Y_lm depends on l only (rotational invariance), rho_l. Here rho_l is measured on the IBM itself,
 on the current shape (Rayleigh quotients v.Av / v.Gv of random v: one Stokes solve for each l <= EXACT_L, one shared
@@ -143,7 +150,7 @@ class HarmonicTensionSolver:
     returns the per-triangle tension B c and the velocity; ``last`` is a SolveInfo."""
 
     def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=RHO_REFRESH,
-                 stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0):
+                 stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0, hold_area=True):
         if not Lambda > 0:
             raise ConfigError(f"Lambda (area-stretch modulus) must be > 0 for the tension solve, got {Lambda!r}")
         self.mobility = mobility
@@ -164,6 +171,10 @@ class HarmonicTensionSolver:
         self.extra_solves = 0  # Stokes solves spent measuring rho_l
         self.refreshes = 0
         self.last = SolveInfo(0, 0.0, 0.0)
+        # hold_area False (run parameter tension_fixed): the l = 0 coefficient is not solved for but kept at the
+        # value the caller passes in c0, so the total area is free and the uniform tension is prescribed
+        self.hold_area = bool(hold_area)
+        self.free = np.ones(space.K, dtype=bool) if self.hold_area else space.l > 0
 
     # ------------------------------------------------------------------ operator and preconditioner
     def _xp_faces(self, c):
@@ -233,8 +244,23 @@ class HarmonicTensionSolver:
         c = np.array(c0, dtype=float, copy=True)
         U = self.mobility.apply(F - face_DT(self._xp_faces(c), geo, self.topo)) + u_inf
         r = sp.test(to_numpy(dt * face_D(U, geo, self.topo) + area_error)) - sp.G @ c / self.Lambda
-        c, U, it, res, res0 = pcg(c, U, r, lambda p: self.operator(p, geo, dt), lambda r: self.precondition(r, dt),
-                                  lambda a, b: float(a @ b), self.strain_rms, self.tol, self.maxiter)
+        operator, precondition = (lambda p: self.operator(p, geo, dt)), (lambda r: self.precondition(r, dt))
+        if not self.hold_area:  # CG in the span of the l >= 1 coefficients: P A P and P S G^-1 S P, P the mask
+            fixed = ~self.free
+            r[fixed] = 0.0
+
+            def operator(p, _op=operator):
+                Ap, q = _op(p)
+                Ap[fixed] = 0.0
+                return Ap, q
+
+            def precondition(r, _pre=precondition):
+                z = _pre(r)
+                z[fixed] = 0.0
+                return z
+
+        c, U, it, res, res0 = pcg(c, U, r, operator, precondition, lambda a, b: float(a @ b), self.strain_rms,
+                                  self.tol, self.maxiter)
         self.last = SolveInfo(it, res, res0)
         if warm and it >= self.stale and self._uses >= STALE_GAP:
             # the preconditioner no longer fits the shape: re-measure at the next call (not again within STALE_GAP
