@@ -9,8 +9,12 @@ at 16). Printed per l:
 
 * <|u_lm|^2> (frames and m averaged) over kT / (kappa Delta [l(l+1) + sigma_bar]), sigma_bar the run's mean
   tension over the same frames (the trajectory's ``tension``), with the standard error of 8 time blocks;
+  In a fixed-tension run (``tension_fixed``) sigma_bar is that prescribed tension, not a measured mean;
 * the same at the tension the mode feels, <sigma |u_l|^2> / <|u_l|^2> over the frames (the power-weighted
   tension; it exceeds the plain mean when the constraint's tension correlates with the amplitudes);
+* one tension sigma_fit fitted to the whole spectrum (least squares in log <|u_lm|^2>, l >= 2, the prefactor
+  kT / (kappa Delta) fixed) and the ratios at it: whether the spectrum has the equilibrium form at some tension,
+  whatever the run's recorded tension is;
 * the autocorrelation time of Re/Im u_lm (m > 0): the lag at which the normalised autocorrelation, averaged over
   m, first falls below 1/e (interpolated), against the deterministic relaxation time of the same discretisation,
   1 / (r_l A_l [l(l+1) + sigma_bar]), with r_l the resolution table's rate ratio measured on the run's own N, L,
@@ -78,24 +82,27 @@ def main():
     u = spectra(ds, L, delta, first)
     t = ds.t_tau.values[first:]
     sig = ds.tension.values[first:]
-    sbar = float(sig.mean())
+    fixed = ds.attrs.get("tension_fixed")  # absent when the area is held (netCDF attributes have no null)
+    sbar = float(fixed) if fixed is not None else float(sig.mean())
     h = float(ds.attrs["L"]) / int(ds.attrs["N"])
     r = grid_damping(np.arange(L + 1), h, str(ds.attrs.get("kernel", "peskin4")), str(ds.attrs.get("coupling",
                                                                                                      "kernel")))
     dt_frame = float(np.median(np.diff(t)))
     print(f"run: {a.trajectory}; kT/kappa = {kT:g}, Delta = {delta:g}, N = {ds.attrs['N']}, "
           f"{ds.sizes['n_node']} vertices, frames {u.shape[0]} over t = {t[0]:.2f} .. {t[-1]:.2f} tau "
-          f"(every {dt_frame:.4g} tau); tension mean {sbar:.1f}, sd over frames {sig.std():.1f}; area drift at the "
+          f"(every {dt_frame:.4g} tau); {'fixed tension' if fixed is not None else 'held area'}, sigma_bar "
+          f"{sbar:.1f}; recorded tension mean {sig.mean():.1f}, sd over frames {sig.std():.1f}; area drift at the "
           f"end {float(ds.area_drift.values[-1]):.2e}, volume drift {float(ds.volume_drift.values[-1]):.2e}")
     print()
     print("| l | <|u_lm|^2> | kT/(kappa Delta (l(l+1)+sigma_bar)) | ratio | se | autocorr. time [tau] "
           "| r_l measured | 1/(r_l A_l (l(l+1)+sigma_bar)) | ratio | same with the fitted r_l |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     blocks = np.array_split(np.arange(u.shape[0]), 8)
-    eff = []
+    eff, means = [], []
     for l in range(2, L + 1):
         p = np.abs(u[:, l, L - l: L + l + 1]) ** 2
         mean = float(p.mean())
+        means.append(mean)
         # the tension the mode feels: its frames weighted by the mode's power (the constraint pulls hardest when
         # the modes are large, so this exceeds the plain mean when tension and amplitude correlate)
         pf = p.sum(axis=1)
@@ -115,6 +122,29 @@ def main():
     print("|---|---|---|")
     for l, s_eff, r_eff in eff:
         print(f"| {l} | {s_eff:.1f} | {r_eff:.3f} |")
+    ls = np.arange(2, L + 1)
+    s_fit, ratio = fit_tension(ls, np.array(means), kT / delta)
+    print()
+    print(f"one tension fitted to the spectrum (l = 2..{L}): sigma_fit = {s_fit:.0f} (sigma_bar {sbar:.0f}); "
+          f"max |ratio - 1| = {np.abs(ratio - 1).max():.3f}, at l = 3..{L - 2}: {np.abs(ratio[1:-2] - 1).max():.3f}")
+    print()
+    print("| l | " + " | ".join(str(l) for l in ls) + " |")
+    print("|---|" + "---|" * ls.size)
+    print("| ratio at sigma_fit | " + " | ".join(f"{x:.3f}" for x in ratio) + " |")
+
+
+def fit_tension(l, mean, kT_over_delta):
+    """The one tension at which kT / (kappa Delta (l(l+1) + sigma)) fits the spectrum best (least squares in the
+    log), and the ratios spectrum / formula at it."""
+    from scipy.optimize import minimize_scalar
+
+    l = np.asarray(l, float)
+
+    def cost(s):
+        return float(np.sum(np.log(mean * (l * (l + 1) + s) / kT_over_delta) ** 2))
+
+    s = float(minimize_scalar(cost, bounds=(-5.0, 1e5), method="bounded").x)
+    return s, mean * (l * (l + 1) + s) / kT_over_delta
 
 
 if __name__ == "__main__":
