@@ -358,19 +358,9 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain",
         choices=("none", "area"),
     ),
-    Parameter(
-        "tension_fixed",
-        None,
-        "float",
-        "tension_space harmonic: null = the total area is held (the uniform, l = 0 tension is solved every step); a "
-        "number = the uniform tension is fixed at this value and the total area is free (a fixed-tension ensemble, "
-        "for equilibrium checks against kT / (kappa (l-1)(l+2) [l(l+1) + sigma]); the l >= 1 tension still holds the "
-        "local area)",
-        "kappa/R^2",
-        0.0,
-        1e7,
-        nullable=True,
-    ),
+    Parameter("tension_fixed", None, "float", "tension_space harmonic: null = the total area is held; a number = the "
+              "uniform (l = 0) tension is fixed at it and the total area is free (a fixed-tension ensemble for "
+              "equilibrium checks); l >= 1 still holds the local area", "kappa/R^2", 0.0, 1e7, nullable=True),
     Parameter(
         "dt_growth",
         0.1,
