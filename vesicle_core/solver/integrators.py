@@ -248,7 +248,7 @@ class Inextensible(Integrator):
         if self.space is None:
             return float(np.abs(e - be.asnumpy(sigma) / self.cfg.Lambda_eff).max())
         # the held part in coefficients (sigma = B c lies in the space); the l = 0 one only when the area is held
-        d = self.space.fit(e) - self.space.fit(be.asnumpy(sigma)) / self.cfg.Lambda_eff
+        d = self.space.fit(e - be.asnumpy(sigma) / self.cfg.Lambda_eff)
         d[~self.tension.free] = 0.0
         return float(np.abs(self.space.faces(d)).max())
 
