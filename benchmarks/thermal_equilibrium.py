@@ -15,6 +15,9 @@ at 16). Printed per l:
 * one tension sigma_fit fitted to the whole spectrum (least squares in log <|u_lm|^2>, l >= 2, the prefactor
   kT / (kappa Delta) fixed) and the ratios at it: whether the spectrum has the equilibrium form at some tension,
   whatever the run's recorded tension is;
+* the spectrum a correct sampler of this mesh's own energy would give at sigma_bar
+  (``validation.mode_energy.equilibrium_spectrum``: the piecewise-flat mesh makes short modes cheaper than the
+  continuum), against the formula and against the run: what is left is the dynamics (noise, constraint, step);
 * the autocorrelation time of Re/Im u_lm (m > 0): the lag at which the normalised autocorrelation, averaged over
   m, first falls below 1/e (interpolated), against the deterministic relaxation time of the same discretisation,
   1 / (r_l A_l [l(l+1) + sigma_bar]), with r_l the resolution table's rate ratio measured on the run's own N, L,
@@ -72,6 +75,8 @@ def main():
     ap.add_argument("trajectory")
     ap.add_argument("--burn-in", type=float, default=0.2, help="fraction of frames skipped")
     ap.add_argument("--l-max", type=int, default=None)
+    ap.add_argument("--no-mesh-equilibrium", action="store_true",
+                    help="skip the mesh's own equilibrium spectrum (a V x V Hessian: ~8 s at 642 vertices)")
     a = ap.parse_args()
     ds = xr.open_dataset(a.trajectory)
     kT, delta = float(ds.attrs["kT"]), float(ds.attrs.get("mesh_target_delta", ds.attrs["delta"]))
@@ -131,6 +136,26 @@ def main():
     print("| l | " + " | ".join(str(l) for l in ls) + " |")
     print("|---|" + "---|" * ls.size)
     print("| ratio at sigma_fit | " + " | ".join(f"{x:.3f}" for x in ratio) + " |")
+    if not a.no_mesh_equilibrium:
+        mesh_equilibrium_rows(X0, f, sbar, kT, L, delta, np.array(means))
+
+
+def mesh_equilibrium_rows(X0, f, sigma, kT, L, delta, means):
+    """The spectrum a correct sampler of this mesh's own energy gives at sigma (validation.mode_energy), against
+    the continuum formula and against the run."""
+    from vesicle_core.validation.mode_energy import continuum_spectrum, equilibrium_spectrum
+
+    ls = np.arange(2, L + 1)
+    pred = equilibrium_spectrum(X0, f, sigma, kT, L, delta)[0][2:]
+    print()
+    print(f"this mesh's own equilibrium at sigma = {sigma:.0f} (its energy E_b + sigma A, normal displacements, "
+          "through the same estimator; validation.mode_energy.equilibrium_spectrum):")
+    print()
+    print("| l | " + " | ".join(str(l) for l in ls) + " |")
+    print("|---|" + "---|" * ls.size)
+    print("| mesh equilibrium / formula | " + " | ".join(
+        f"{x:.3f}" for x in pred / continuum_spectrum(ls, sigma, kT, delta)) + " |")
+    print("| run / mesh equilibrium | " + " | ".join(f"{x:.3f}" for x in means / pred) + " |")
 
 
 def fit_tension(l, mean, kT_over_delta):
