@@ -326,3 +326,64 @@ def test_noise_field_is_divergence_free_with_the_expected_mode_variances(couplin
     # a real Gaussian per component at these modes: 3 dof, relative std sqrt(2 / (3 draws)) = 2.1%
     assert np.abs(r_nyq - 1).max() < 0.1, r_nyq
     assert abs(np.median(ratio[expect > 0]) - 1) < 0.03
+
+
+class _Unconstrained:
+    """The ConstrainedMobility interface over the plain IBM mobility (no tension): enough for ThermalVelocity."""
+
+    def __init__(self, mob):
+        self.mobility, self.backend, self.dt, self.step = mob, mob.backend, 1.0, 0
+
+    def prepare(self, X):
+        self.mobility.prepare(X)
+
+    def apply(self, W):
+        return self.mobility.apply(W)
+
+
+def test_drift_every_k_steps_is_the_rfd_weighted_by_k_on_those_steps_only():
+    """noise_drift_every = 3: steps 0, 3 carry 3x the step's own random finite difference, the others none, and the
+    noise is the same draw; the drift's mean per step is kept (sum over a period = sum of the k draws' expectation)
+    and the constrained solves fall 3-fold."""
+    from vesicle_core.solver.fluctuations import ThermalVelocity
+
+    _, be, st, mob = _setup()
+    every1 = ThermalVelocity(st, _Unconstrained(mob), KT, seed=5, drift_every=1)
+    every3 = ThermalVelocity(st, _Unconstrained(IBMMobility(Coupler(Grid(N, L), be), st)), KT, seed=5, drift_every=3)
+    for step in range(6):
+        rfd = rfd_drift(mob, X3, KT, 5, step, delta=every1.delta)
+        diff = every3(X3, DT, step) - every1(X3, DT, step)  # the noise cancels: same seed and step
+        np.testing.assert_allclose(diff, (2.0 if step % 3 == 0 else -1.0) * rfd, rtol=1e-9, atol=1e-12)
+    assert every1.stokes_solves == 3 * every3.stokes_solves == 12
+    with pytest.raises(ConfigError, match="drift_every"):
+        ThermalVelocity(st, _Unconstrained(mob), KT, seed=5, drift_every=0)
+
+
+def test_lm_noise_is_the_mean_of_this_and_the_next_steps_euler_draws():
+    _, _, st, _ = _setup()
+    euler, lm = ThermalNoise(st, KT, seed=11), ThermalNoise(st, KT, seed=11, scheme="lm")
+    expected = 0.5 * (euler.velocity(DT, 4).copy() + euler.velocity(DT, 5).copy())
+    np.testing.assert_allclose(lm.velocity(DT, 4), expected, rtol=1e-12, atol=1e-14)
+    with pytest.raises(ConfigError, match="noise_scheme"):
+        ThermalNoise(st, KT, scheme="midpoint")
+
+
+@pytest.mark.parametrize("scheme, factor", [("euler", 1.0 / (1.0 - 0.3)), ("lm", 1.0)])
+def test_a_trapped_marker_samples_kT_over_k_with_lm_and_the_euler_bias_without(scheme, factor):
+    """One marker in a harmonic trap, X' = M (-k X) + noise, at a step with a dt = 0.6 (a = k m_self): Euler's
+    stationary variance is (kT / k) / (1 - a dt / 2) = 1.43 kT / k, the averaged noise's is kT / k (the linear
+    case, where it is exact). 3000 steps, 3 components; the lag-one correlation (1 - a dt = 0.4) is allowed for."""
+    _, _, st, mob = _setup()
+    X = np.array([[0.05, -0.02, 0.03]])
+    m_self = mobility_matrix(mob, X)[0, 0]
+    k = 0.6 / (m_self * DT)
+    noise = ThermalNoise(st, KT, seed=13, scheme=scheme)
+    samples = []
+    for n in range(3000):
+        mob.prepare(X)
+        X = X + DT * (np.asarray(mob.apply(-k * X)) + np.asarray(mob.coupler.interpolate(noise.velocity(DT, n))))
+        if n >= 100:
+            samples.append(X[0].copy())
+    var = np.var(np.array(samples), axis=0).mean() / (KT / k)
+    # se of a variance from 2900 x 3 samples, inflated ~1.5x by the lag-one correlation: ~2.5%
+    assert var == pytest.approx(factor, rel=0.08), var

@@ -61,6 +61,8 @@ class RunConfig:
     kT: float = 0.0
     noise_seed: int = 0
     noise_step: float = 0.04
+    noise_scheme: str = "euler"
+    noise_drift_every: int = 1
     store_velocity: bool = False
 
     def __post_init__(self):

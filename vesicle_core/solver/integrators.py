@@ -182,7 +182,8 @@ class Inextensible(Integrator):
             return B.geometry(X, mem.topo, mem.area_model)
 
         constrained = ConstrainedMobility(self.tension, self.mobility, geometry, harmonic=self.space is not None)
-        return ThermalVelocity(self.solver.stokes, constrained, self.cfg.kT, self.cfg.noise_seed)
+        return ThermalVelocity(self.solver.stokes, constrained, self.cfg.kT, self.cfg.noise_seed,
+                               drift_every=self.cfg.noise_drift_every, scheme=self.cfg.noise_scheme)
 
     def _harmonic_solver(self):
         from .tension_harmonic import HarmonicSpace, HarmonicTensionSolver
