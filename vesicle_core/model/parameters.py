@@ -426,7 +426,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         lo_open=True,
     ),
-    Parameter("noise_scheme", "euler", "str", "thermal noise: euler (each step its own draw; the stationary "
+    Parameter("noise_scheme", "lm", "str", "thermal noise: euler (each step its own draw; the stationary "
               "spectrum is off by O(dt)) or lm (Leimkuhler-Matthews: the mean of this and the next step's draw; exact "
               "for linear modes) (fluctuations.py)", choices=("euler", "lm")),
     Parameter("noise_drift_every", 1, "int", "thermal noise: steps between the Ito drift's random finite differences "

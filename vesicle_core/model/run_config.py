@@ -61,7 +61,7 @@ class RunConfig:
     kT: float = 0.0
     noise_seed: int = 0
     noise_step: float = 0.04
-    noise_scheme: str = "euler"
+    noise_scheme: str = "lm"
     noise_drift_every: int = 1
     store_velocity: bool = False
 
