@@ -21,11 +21,13 @@ KT, DT = 0.0405, 1e-3
 def _thermal_setup(space):
     """A 42-vertex vesicle on a 16^3 grid with the harmonic tension (l_t = 3) or the per-triangle one and a stiff
     compliance (Lambda 1e12), so that the constraint is rigid to 1e-6 and the projection exact to far below
-    sampling accuracy."""
+    sampling accuracy. noise_scheme euler: the samples below are one step's draws, independent across steps (lm's
+    velocity is the mean of two consecutive such draws, tests/solver/test_fluctuations.py)."""
     m = Mm.make_vesicle("icosphere", level=1, axes=(1.0, 0.9, 1.0))
     extra = {"tension_l_max": 3} if space == "harmonic" else {}
     cfg = RunConfig(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space=space, Lambda=1e12,
-                    cg_tol=1e-12, cg_maxiter=2000, kT=KT, noise_seed=11, **extra)
+                    cg_tol=1e-12, cg_maxiter=2000, kT=KT, noise_seed=11, noise_scheme="euler",
+                    **extra)
     s = IBMSolver(m.faces, m.vertices, cfg)
     integ = Inextensible(s, 1e-3, X0=m.vertices)
     X = s.xp.asarray(m.vertices)
