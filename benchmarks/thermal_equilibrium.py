@@ -87,7 +87,8 @@ def main():
     u = spectra(ds, L, delta, first)
     t = ds.t_tau.values[first:]
     sig = ds.tension.values[first:]
-    fixed = ds.attrs.get("tension_fixed")  # absent when the area is held (netCDF attributes have no null)
+    fixed = ds.attrs.get("tension_fixed")  # "default" when the area is held (RunConfig.as_attrs: netCDF has no null)
+    fixed = None if fixed is None or str(fixed) == "default" else fixed
     sbar = float(fixed) if fixed is not None else float(sig.mean())
     h = float(ds.attrs["L"]) / int(ds.attrs["N"])
     r = grid_damping(np.arange(L + 1), h, str(ds.attrs.get("kernel", "peskin4")), str(ds.attrs.get("coupling",
