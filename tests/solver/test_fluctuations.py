@@ -355,8 +355,14 @@ def test_drift_every_k_steps_is_the_rfd_weighted_by_k_on_those_steps_only():
         diff = every3(X3, DT, step) - every1(X3, DT, step)  # the noise cancels: same seed and step
         np.testing.assert_allclose(diff, (2.0 if step % 3 == 0 else -1.0) * rfd, rtol=1e-9, atol=1e-12)
     assert every1.stokes_solves == 3 * every3.stokes_solves == 12
+    # 0: no drift at all, the noise alone and no constrained solve
+    off = ThermalVelocity(st, _Unconstrained(IBMMobility(Coupler(Grid(N, L), be), st)), KT, seed=5, drift_every=0)
+    for step in range(3):
+        rfd = rfd_drift(mob, X3, KT, 5, step, delta=every1.delta)
+        np.testing.assert_allclose(off(X3, DT, step), every1(X3, DT, step) - rfd, rtol=1e-9, atol=1e-12)
+    assert off.stokes_solves == 0
     with pytest.raises(ConfigError, match="drift_every"):
-        ThermalVelocity(st, _Unconstrained(mob), KT, seed=5, drift_every=0)
+        ThermalVelocity(st, _Unconstrained(mob), KT, seed=5, drift_every=-1)
 
 
 def test_lm_noise_is_the_mean_of_this_and_the_next_steps_euler_draws():

@@ -259,8 +259,9 @@ class ThermalVelocity:
         # the drift's random finite difference on every drift_every-th step only, weighted by it: its mean per unit
         # time is kept and the noise's cost falls from two constrained solves per step to 2 / drift_every; the
         # displacement it adds scatters by O(dt) per application, against the noise's O(sqrt(dt)); exact in the mean
-        # for a fixed dt, to first order for an adaptive step that changes slowly
-        self.drift_every = int(check_range("drift_every", drift_every, 1, None))
+        # for a fixed dt, to first order for an adaptive step that changes slowly. 0 switches the drift off: a paired
+        # run at N = 32 (same noise) moved neither the spectrum nor the centroid's D (docs/thermal.md section 7)
+        self.drift_every = int(check_range("drift_every", drift_every, 0, None))
         self.constrained = constrained
         self.kT = self.noise.kT
         self.seed = self.noise.seed
@@ -295,7 +296,7 @@ class ThermalVelocity:
         be = self.constrained.backend
         self.constrained.dt, self.constrained.step = dt, step
         drift = None
-        if step % self.drift_every == 0:  # a function of the step counter: a resumed run applies it on the same steps
+        if self.drift_every and step % self.drift_every == 0:  # a function of the step counter: a resumed run applies it on the same steps
             n0 = self.constrained.mobility.n_products
             drift = self.drift_every * rfd_drift(self.constrained, be.asnumpy(X), self.kT, self.seed, step,
                                                  delta=self.delta)
