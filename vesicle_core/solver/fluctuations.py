@@ -296,7 +296,8 @@ class ThermalVelocity:
         be = self.constrained.backend
         self.constrained.dt, self.constrained.step = dt, step
         drift = None
-        if self.drift_every and step % self.drift_every == 0:  # a function of the step counter: a resumed run applies it on the same steps
+        # a function of the step counter, so a resumed run applies the drift on the same steps
+        if self.drift_every and step % self.drift_every == 0:
             n0 = self.constrained.mobility.n_products
             drift = self.drift_every * rfd_drift(self.constrained, be.asnumpy(X), self.kT, self.seed, step,
                                                  delta=self.delta)
