@@ -393,3 +393,25 @@ def test_a_trapped_marker_samples_kT_over_k_with_lm_and_the_euler_bias_without(s
     var = np.var(np.array(samples), axis=0).mean() / (KT / k)
     # se of a variance from 2900 x 3 samples, inflated ~1.5x by the lag-one correlation: ~2.5%
     assert var == pytest.approx(factor, rel=0.08), var
+
+
+def test_noise_on_markers_much_finer_than_the_grid_warns(caplog):
+    """The measured failure (docs/thermal.md section 7: area creep, then a CG failure at edge 0.48 h) is warned of
+    before the run; an edge of ~h, where the 642-vertex runs held their area, is silent, and so is a run without
+    noise on the same fine mesh."""
+    from vesicle_core.geometry import mesh as M
+    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.solver.fluctuations import NOISE_EDGE_MIN, noise_mesh_warning
+    from vesicle_core.solver.simulate import _check_mesh_spacing
+
+    assert noise_mesh_warning(NOISE_EDGE_MIN) is None and "0.40 h" in noise_mesh_warning(0.4)
+    m = M.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))  # mean edge ~0.25 R
+    noisy = dict(scheme="inextensible", tension_space="harmonic", kT=0.0405)
+    with caplog.at_level("WARNING", logger="vesicle_core.solver.simulate"):
+        _check_mesh_spacing(m, RunConfig(N=16, **noisy))  # h = 0.31: edge ~0.8 h
+        assert not caplog.records
+        _check_mesh_spacing(m, RunConfig(N=8, **noisy))  # h = 0.625: edge ~0.4 h
+        assert "kT > 0" in caplog.text and "edge ~h" in caplog.text
+        caplog.clear()
+        _check_mesh_spacing(m, RunConfig(N=8, scheme="inextensible", tension_space="harmonic"))
+        assert not caplog.records

@@ -185,19 +185,19 @@ def test_sharp_mode_damping_describes_the_measured_rates():
 def test_a_sharp_run_on_coarse_markers_or_the_3_point_kernel_warns(caplog):
     from vesicle_core.geometry import mesh as M
     from vesicle_core.model.run_config import RunConfig
-    from vesicle_core.solver.simulate import _check_mesh_for_coupling
+    from vesicle_core.solver.simulate import _check_mesh_spacing
 
     m = M.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))  # mean edge ~0.25 R
     with caplog.at_level("WARNING", logger="vesicle_core.solver.simulate"):
-        _check_mesh_for_coupling(m, RunConfig(N=16, coupling="sharp"))  # h = 0.31: edge < h, silent
+        _check_mesh_spacing(m, RunConfig(N=16, coupling="sharp"))  # h = 0.31: edge < h, silent
         assert not caplog.records
-        _check_mesh_for_coupling(m, RunConfig(N=48, coupling="sharp"))  # h = 0.10: edge ~2.4 h
+        _check_mesh_spacing(m, RunConfig(N=48, coupling="sharp"))  # h = 0.10: edge ~2.4 h
         assert "mesh edge" in caplog.text and "vertices" in caplog.text
         caplog.clear()
-        _check_mesh_for_coupling(m, RunConfig(N=16, coupling="sharp", kernel="roma3"))
+        _check_mesh_spacing(m, RunConfig(N=16, coupling="sharp", kernel="roma3"))
         assert "roma3" in caplog.text
         caplog.clear()
-        _check_mesh_for_coupling(m, RunConfig(N=48))  # the kernel coupling has no such requirement
+        _check_mesh_spacing(m, RunConfig(N=48))  # the kernel coupling has no such requirement
         assert not caplog.records
 
 

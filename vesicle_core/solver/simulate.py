@@ -45,6 +45,7 @@ from ..geometry.mesh import vertices_for_edge
 from ..model.parameters import CHECKPOINT_WALL_S
 from ..model.run_config import RunConfig
 from . import membrane as B
+from .fluctuations import noise_mesh_warning
 from .mobility import IBMSolver
 from .step_size import initial_dt
 from .trajectory import (
@@ -189,19 +190,22 @@ SHARP_EDGE_MAX = 1.5
 DT_COLLAPSE = 1e-6
 
 
-def _check_mesh_for_coupling(mesh, cfg: RunConfig) -> None:
+def _check_mesh_spacing(mesh, cfg: RunConfig) -> None:
     """Warn when the sharp coupling runs on markers much coarser than the grid (edge > SHARP_EDGE_MAX h), or with a
     kernel whose Fourier transform does not vanish at the grid's Nyquist wave number (the 3-point kernel: its resolved
-    rates come out 2-6% fast with edge h, up to 41% with edge 2h; docs/solver.md)."""
+    rates come out 2-6% fast with edge h, up to 41% with edge 2h; docs/solver.md), or noise on markers much finer
+    than the grid (fluctuations.noise_mesh_warning)."""
+    edge = float(mesh.quality()["edge_mean"]) / cfg.h
+    if cfg.kT > 0 and (message := noise_mesh_warning(edge)):
+        log.warning(message)
     if cfg.coupling != "sharp":
         return
     if cfg.kernel == "roma3":
         log.warning("coupling 'sharp' with kernel 'roma3' overestimates the resolved modes' rates (by up to 6%% with a "
                     "mesh edge of h); use peskin4 or bao6")
-    edge = float(mesh.quality()["edge_mean"])
-    if edge > SHARP_EDGE_MAX * cfg.h:
+    if edge > SHARP_EDGE_MAX:
         log.warning("coupling 'sharp' with a mean mesh edge of %.2f h (> %.1f h): it resolves little more than the "
-                    "kernel coupling there; use a mesh of ~%d vertices (edge ~h) at N = %d", edge / cfg.h,
+                    "kernel coupling there; use a mesh of ~%d vertices (edge ~h) at N = %d", edge,
                     SHARP_EDGE_MAX, vertices_for_edge(cfg.h), cfg.N)
 
 
@@ -218,7 +222,7 @@ class _Run:
         from .integrators import SCHEMES as INTEGRATORS
 
         self.mesh, self.cfg, self.outdir = mesh, cfg, outdir
-        _check_mesh_for_coupling(mesh, cfg)
+        _check_mesh_spacing(mesh, cfg)
         self.solver = solver = IBMSolver(mesh.faces, mesh.vertices, cfg)
         self.xp, self.be, self.mem = solver.xp, solver.be, solver.membrane
         self.A0, self.V0 = self.mem.ref.area, self.mem.ref.volume
