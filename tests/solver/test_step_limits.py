@@ -16,11 +16,14 @@ from vesicle_core.solver.tension_harmonic import HarmonicSpace
 from vesicle_core.solver.trajectory import State
 
 
+@pytest.mark.parametrize("cg_tol", [1e-11, 1e-4])
 @pytest.mark.parametrize("space", ["triangle", "harmonic"])
-def test_linearisation_strain_is_second_order_in_the_step(space):
-    """One step from the same state with dt and dt / 2: the held strain it adds beyond sigma / Lambda falls 4x."""
+def test_linearisation_strain_is_second_order_in_the_step(space, cg_tol):
+    """One step from the same state with dt and dt / 2: the held strain it adds beyond first order falls 4x, also
+    when the CG stops early (cg_tol 1e-4): its residual, which does not shrink with dt, is not part of the estimate
+    (with it, the limit collapsed the elongated vesicle's step)."""
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space=space, cg_tol=1e-11, cg_maxiter=500,
+    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space=space, cg_tol=cg_tol, cg_maxiter=500,
                     mesh_ale="area" if space == "harmonic" else "none")  # the ALE's own motion is not counted
     s = IBMSolver(m.faces, m.vertices, cfg)
     integ = Inextensible(s, 1.0, X0=m.vertices)
@@ -66,7 +69,7 @@ def test_a_collapsing_step_stops_the_run_and_names_its_limit(tmp_path, monkeypat
     tau)."""
     from vesicle_core.errors import NumericalInstability
 
-    monkeypatch.setattr(Inextensible, "linearisation_strain", lambda self, sigma, X: 1.0)  # 500x dt_strain, fixed
+    monkeypatch.setattr(Inextensible, "linearisation_strain", lambda self, X, dX: 1.0)  # 500x dt_strain, fixed
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
     cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
                     output_every=0.05)

@@ -105,6 +105,23 @@ def triangle_areas(vertices, faces) -> np.ndarray:
     return np.linalg.norm(face_area_vectors(v, f), axis=1)
 
 
+def triangle_area_nonlinear(vertices, faces, displacement) -> np.ndarray:
+    """A(X + dX) - A(X) - (dA/dX) dX for every triangle, shape (F,): the part of a displacement's area change that
+    is not linear in it (O(|dX|^2), exactly zero for a rigid translation), in float64 whatever the inputs' dtype."""
+    v, f = _as_mesh(vertices, faces)
+    d = np.asarray(displacement, dtype=float)
+    if d.shape != v.shape:
+        raise MeshError(f"displacement must have the vertices' shape {v.shape}, got {d.shape}")
+    a = face_area_vectors(v, f)
+    area = np.linalg.norm(a, axis=1)
+    xi, xj, xk = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    di, dj, dk = d[f[:, 0]], d[f[:, 1]], d[f[:, 2]]
+    # the area vector's first-order change; the area's is its component along the normal
+    a1 = 0.5 * (cross_rows(dj - di, xk - xi) + cross_rows(xj - xi, dk - di))
+    linear = (a * a1).sum(axis=1) / np.maximum(area, 1e-300)
+    return np.linalg.norm(face_area_vectors(v + d, f), axis=1) - area - linear
+
+
 def volume_centroid(vertices, faces) -> np.ndarray:
     """Centroid of the solid enclosed by a closed, outward-oriented surface (sum over tetrahedra to a
     reference point; computed relative to the vertex mean to avoid round-off far from the origin)."""

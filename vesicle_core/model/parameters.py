@@ -377,8 +377,8 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         2.0e-3,
         "float",
         "inextensible, adaptive dt, no thermal noise: the largest strain of the held area (the triangle's, or its "
-        "projection on the harmonic space) that one step may add beyond its compliance sigma/Lambda: the second "
-        "order of the linearised constraint, which peaks while the wrinkles flatten out (dt scales as its inverse "
+        "projection on the harmonic space) that one step may add beyond first order in its displacement, which the "
+        "linearised constraint cannot see; it peaks while the wrinkles flatten out (dt scales as its inverse "
         "square root; 1 leaves the step to the other limits)",
         "",
         0.0,
