@@ -288,7 +288,8 @@ class Inextensible(Integrator):
         # noise_step)
         state.strain_err = self.linearisation_strain(X, U * dt) if self.thermal is None else 0.0
         if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
-            return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area)
+            return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area,
+                                     scale=dt / (cfg.dt_safety * self.dt_bending))
         return U * dt
 
     def _restore_rho(self, state):
