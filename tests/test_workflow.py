@@ -235,6 +235,17 @@ def test_paper_config_plans(tmp_path):
     assert all("gpu=1" in b.split("\n\n")[0] for b in sim_blocks)
 
 
+def test_paper_cpu_config_plans_on_top_of_the_default(tmp_path):
+    """config/paper_cpu.yaml only re-sweeps: the paper's seven runs with config.yaml's discretisation."""
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "-n", "-p", "--configfile", "config/paper_cpu.yaml")
+    assert r.returncode == 0, r.stderr + r.stdout
+    sims = sorted(j["wildcards"]["case_id"] for j in planned_jobs(r.stdout) if j["rule"] == "simulate")
+    assert sims == sorted([f"D0.116_S{S}_N128_Q9512" for S in ("227", "553", "1106.5", "2224", "4448")]
+                          + ["D0.997_S237_N128_Q9512", "D0.997_S947_N128_Q9512"])
+    assert "\ncoupling: sharp\n" in r.stdout and "\nkernel: bao6\n" in r.stdout
+
+
 def test_validation_config_plans(tmp_path):
     wd = workflow_copy(tmp_path)
     r = snakemake(wd, "-n", "-p", "--configfile", "config/validation.yaml")
