@@ -75,3 +75,28 @@ def test_a_collapsing_step_stops_the_run_and_names_its_limit(tmp_path, monkeypat
                     output_every=0.05)
     with pytest.raises(NumericalInstability, match=r"collapsed .* \(set by the dt_strain limit\)"):
         run(m, cfg, tmp_path / "run", progress=False)
+
+
+def test_the_bending_limit_is_re_measured_on_the_current_shape():
+    """The warm-started re-measurement agrees with a cold power iteration at the same shape, on the start's shape
+    and on a roughened one whose limit is much shorter (as a wrinkled vesicle's is); next_dt uses it."""
+    from vesicle_core.solver.integrators import BENDING_REFRESH
+    from vesicle_core.solver.step_size import power_dt
+
+    m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
+    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="triangle", dt_safety=0.5)
+    s = IBMSolver(m.faces, m.vertices, cfg)
+    dt0, _ = power_dt(s, s.xp.asarray(m.vertices))
+    integ = Inextensible(s, dt0, X0=m.vertices)
+    state = State(X=s.xp.asarray(m.vertices), step=BENDING_REFRESH)
+    F, geo = s.forces(state.X)
+    assert integ.next_dt(state, geo) <= 0.5 * state.dt_bending * (1 + 1e-12)
+    assert state.dt_bending == pytest.approx(dt0, rel=0.05)
+    rough = m.vertices * (1.0 + 0.2 * np.random.default_rng(0).standard_normal((m.n_vertices, 1)))
+    cold, _ = power_dt(s, s.xp.asarray(rough))
+    assert cold < 0.5 * dt0  # the roughened shape is stiffer: the check below can tell the two apart
+    state.X, state.step = s.xp.asarray(rough), 2 * BENDING_REFRESH
+    F, geo = s.forces(state.X)
+    integ.next_dt(state, geo)
+    assert state.dt_bending == pytest.approx(cold, rel=0.05)
+    assert integ.bending_limit(state) == state.dt_bending

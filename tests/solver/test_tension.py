@@ -162,19 +162,22 @@ def test_inextensible_run_holds_every_triangle(inext_run):
 
 @pytest.mark.parametrize(("space", "kT"), [("triangle", 0.0), ("harmonic", 0.0), ("harmonic", 0.0405)])
 def test_inextensible_resume_is_identical(tmp_path, space, kT):
-    """A run stopped after 10 steps and resumed from its checkpoint (every 7 steps) gives the uninterrupted run's
+    """A run stopped after 25 steps and resumed from its checkpoint (every 7 steps) gives the uninterrupted run's
     frames bit for bit. The harmonic tension checkpoints its measured diagonal rho_l and its age, and each
     measurement's draw is seeded by its step; the thermal noise and its drift draw from (noise_seed, step) only."""
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
     cfg = _run_cfg(checkpoint_every=7, tension_space=space, kT=kT, noise_seed=5)
     ref = xr.open_dataset(run(m, cfg, tmp_path / "a", progress=False)).load()
-    assert run(m, cfg, tmp_path / "b", progress=False, stop_after_steps=10) is None
+    # 25: past the bending limit's first re-measurement (step 20) and its checkpoint (21), so that the one at step
+    # 40 starts from the checkpointed vector
+    assert run(m, cfg, tmp_path / "b", progress=False, stop_after_steps=25) is None
     assert (tmp_path / "b" / CHECKPOINT).exists() and not (tmp_path / "b" / TRAJECTORY).exists()
     res = xr.open_dataset(run(m, cfg, tmp_path / "b", progress=False)).load()
     assert res.attrs["steps"] == ref.attrs["steps"]
     np.testing.assert_array_equal(res.node_x.values, ref.node_x.values)
     np.testing.assert_array_equal(res.face_tension.values, ref.face_tension.values)
     np.testing.assert_array_equal(res.dt_tau.values, ref.dt_tau.values)  # every frame's own step, resumed or not
+    assert res.attrs["dt_bending_last_tau"] == ref.attrs["dt_bending_last_tau"]  # the step-40 re-measurement
 
 
 def test_thermal_seed_survives_a_resume_after_the_reversal(tmp_path):

@@ -132,6 +132,10 @@ def fastest_growth_rate(sigma_mean: float, l_max: int, h: float = 0.0,
 # Euler is stable for |lam| dt < 2, i.e. dt < 16 h / |sigma|. The sharp coupling does not smooth the mesh-scale
 # modes away: 0.56 sigma / h at sigma = 8000 on 2379 vertices (edge ~h) at N = 64, so dt < 3.3 h / |sigma|.
 TENSION_STABILITY = {"kernel": 16.0, "sharp": 3.3}
+# steps between re-measurements of the bending limit: on the elongated vesicle at 128^3 (sharp coupling) it falls
+# 4.8x from the start's while the wrinkles grow (|lam| 3.5e4 -> 1.7e5 /tau by gamma_dot t = 0.5 after the reversal),
+# and steps at the start's limit then kicked vertices by up to 88 h
+BENDING_REFRESH = 20
 
 
 class Inextensible(Integrator):
@@ -165,6 +169,9 @@ class Inextensible(Integrator):
                                          maxiter=cfg.cg_maxiter, cells="face", local=local)
         self.l_grid = math.ceil(math.pi / cfg.h)  # the shortest wave the grid can carry, in R
         self.iterations = []
+        self._bending_step = -1  # step of the last bending-limit measurement
+        self.bending_solves = 0  # Stokes solves spent on them (this call)
+        self.dt_bending_min = self.dt_bending_last = dt_bending
         self.thermal = self._thermal() if cfg.kT > 0 else None
         # the noise's step limit, from the reference mesh so that a resumed run gets the same one
         self.dt_noise = math.inf
@@ -217,7 +224,9 @@ class Inextensible(Integrator):
 
     def next_dt(self, state, geo) -> float:
         cfg = self.cfg
-        limits = {"bending": cfg.dt_safety * self.dt_bending, "noise_step": self.dt_noise}
+        if state.step and state.step % BENDING_REFRESH == 0 and state.step != self._bending_step:
+            self._measure_bending(state)
+        limits = {"bending": cfg.dt_safety * self.bending_limit(state), "noise_step": self.dt_noise}
         if state.sigma is not None:
             smax = float(self.solver.xp.abs(state.sigma).max())
             if smax > 0:
@@ -233,6 +242,24 @@ class Inextensible(Integrator):
             limits["dt_strain"] = state.dt_steps[-1] * math.sqrt(cfg.dt_strain / state.strain_err)
         self.binding_limit = min(limits, key=limits.get)  # named in the error when the step collapses
         return limits[self.binding_limit]
+
+    def bending_limit(self, state) -> float:
+        """The bending stability limit (tau): the last re-measurement's, or the start's before the first."""
+        return state.dt_bending if state.dt_bending > 0 else self.dt_bending
+
+    def _measure_bending(self, state) -> None:
+        """Power iteration at the current shape, from the last measurement's vector (random, seeded by the step,
+        at the first): the state carries both, so a resumed run measures what the first call did."""
+        from .step_size import power_iteration
+
+        lam, v, solves = power_iteration(self.solver, state.X, v0=state.bending_mode, iters=20, rtol=1e-2,
+                                         seed=state.step)
+        self._bending_step = state.step
+        self.bending_solves += solves
+        if lam > 0:
+            state.dt_bending, state.bending_mode = 2.0 / lam, v
+            self.dt_bending_min = min(self.dt_bending_min, state.dt_bending)
+            self.dt_bending_last = state.dt_bending
 
     def linearisation_strain(self, X, dX) -> float:
         """Largest strain of the held area (per triangle, or its W-projection on the harmonic space) that the step dX
@@ -289,7 +316,7 @@ class Inextensible(Integrator):
         state.strain_err = self.linearisation_strain(X, U * dt) if self.thermal is None else 0.0
         if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
             return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area,
-                                     scale=dt / (cfg.dt_safety * self.dt_bending))
+                                     scale=dt / (cfg.dt_safety * self.bending_limit(state)))
         return U * dt
 
     def _restore_rho(self, state):
@@ -311,7 +338,10 @@ class Inextensible(Integrator):
         return {"cg_iterations_median": float(np.median(it)), "cg_iterations_mean": float(it.mean()),
                 "cg_iterations_max": int(it.max()),
                 # one for the warm-start velocity, one per iteration (+ the harmonic space's rho_l measurements)
-                "stokes_solves": int(it.size + it.sum() + getattr(self.tension, "extra_solves", 0)),
+                "stokes_solves": int(it.size + it.sum() + getattr(self.tension, "extra_solves", 0)
+                                     + self.bending_solves),
+                "bending_solves": int(self.bending_solves), "dt_bending_min_tau": float(self.dt_bending_min),
+                "dt_bending_last_tau": float(self.dt_bending_last),
                 "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0)),  # local -> compliance repeats (this call)
                 **self._precond_stats(), **self._thermal_stats()}
 

@@ -18,7 +18,7 @@ import numpy as np
 from ..model.run_config import RunConfig
 from .mobility import IBMSolver
 
-__all__ = ["formula_dt", "initial_dt", "power_dt"]
+__all__ = ["formula_dt", "initial_dt", "power_dt", "power_iteration"]
 
 log = logging.getLogger("vesicle_core.solver.simulate")  # the estimates are part of the run's log
 
@@ -43,23 +43,33 @@ def power_dt(solver: IBMSolver, X, iters=30, seed=0) -> tuple[float, float]:
 
     The Jacobian-vector product is a centred finite difference of the velocity (two solves).
     """
+    lam, _, _ = power_iteration(solver, X, iters=iters, seed=seed)
+    return (2.0 / lam if lam > 0 else math.inf), lam
+
+
+def power_iteration(solver: IBMSolver, X, v0=None, iters=30, rtol=1e-3, seed=0):
+    """Power iteration on the linearised membrane velocity at X -> (|lam|, unit vector, Stokes solves).
+
+    ``v0``: a start vector (the last measurement's, so that a re-measurement on a slowly changing shape needs a few
+    iterations); None: a random one from ``seed``. Stops when |lam| changes by less than ``rtol``."""
     xp = solver.xp
-    rng = np.random.default_rng(seed)
-    v = xp.asarray(rng.standard_normal(X.shape))
+    v = xp.asarray(np.random.default_rng(seed).standard_normal(X.shape)) if v0 is None else xp.asarray(v0) + 0.0
     v /= float(xp.linalg.norm(v))
     scale = 1e-7 * float(xp.abs(X).max())
     lam = 0.0
+    solves = 0
     for _ in range(iters):
         Jv = (solver.membrane_velocity(X + scale * v) - solver.membrane_velocity(X - scale * v)) / (2 * scale)
+        solves += 2
         new = float(xp.linalg.norm(Jv))
         if new == 0 or not math.isfinite(new):
             break
         v = Jv / new
-        if abs(new - lam) < 1e-3 * new:
+        if abs(new - lam) < rtol * new:
             lam = new
             break
         lam = new
-    return (2.0 / lam if lam > 0 else math.inf), lam
+    return lam, v, solves
 
 
 def initial_dt(cfg: RunConfig, solver: IBMSolver, X, edge_mean: float) -> float:

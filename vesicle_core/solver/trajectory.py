@@ -62,6 +62,8 @@ class State:
     tension_rho: object = None  # tension_space harmonic: the measured area rate per l of the last refresh
     tension_rho_age: int = 0  # steps since that refresh
     strain_err: float = 0.0  # inextensible: the last step's linearisation strain (dt_strain), before any ALE motion
+    dt_bending: float = 0.0  # inextensible: the bending limit re-measured during the run (tau; 0: the start's)
+    bending_mode: object = None  # its power iteration's last vector, (V, 3): the next measurement's start
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -73,6 +75,8 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
     for name in ("sigma", "sigma_prev"):
         if getattr(state, name) is not None:
             data[name] = (("n_face",), be.asnumpy(getattr(state, name)))
+    if state.bending_mode is not None:
+        data["bending_mode"] = (("n_node", "xyz"), be.asnumpy(state.bending_mode))
     if state.tension_rho is not None:
         data["tension_rho"] = (("n_l",), np.asarray(state.tension_rho, dtype=float))
     if state.cg_iterations:
@@ -86,7 +90,7 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
         "n_frames": state.n_frames, "next_output": state.next_output, "dt": state.dt,
         "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
         "next_output_t": state.next_output_t, "seed_l_max": state.seed_l_max, "wall_s": state.wall_s,
-        "tension_rho_age": state.tension_rho_age, "strain_err": state.strain_err,
+        "tension_rho_age": state.tension_rho_age, "strain_err": state.strain_err, "dt_bending": state.dt_bending,
     }
     if state.dt_steps:  # netCDF attributes cannot be empty
         attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
@@ -115,7 +119,8 @@ def load_checkpoint(path: Path, xp):
         cg_iterations=[int(v) for v in ds["cg_iterations"].values] if "cg_iterations" in ds else [],
         tension_rho=ds["tension_rho"].values.copy() if "tension_rho" in ds else None,
         tension_rho_age=int(a.get("tension_rho_age", 0)),
-        strain_err=float(a.get("strain_err", 0.0)),
+        strain_err=float(a.get("strain_err", 0.0)), dt_bending=float(a.get("dt_bending", 0.0)),
+        bending_mode=xp.asarray(ds["bending_mode"].values) if "bending_mode" in ds else None,
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
