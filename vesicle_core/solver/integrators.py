@@ -265,8 +265,7 @@ class Inextensible(Integrator):
         """Largest strain of the held area (per triangle, or its W-projection on the harmonic space) that the step dX
         from X adds beyond first order: P (A(X + dX) - A(X) - D dX) / A^0, the change the linearised constraint
         cannot see. It scales as |dX|^2, so as dt^2. The CG's residual and an area error the step starts with are
-        left out: neither shrinks with dt (the next solve corrects both), and with them in it the limit drove the
-        elongated vesicle's step to 4e-11 tau."""
+        left out: neither shrinks with dt (the next solve corrects both), so a shorter step cannot reduce them."""
         from ..geometry.surface import triangle_area_nonlinear
 
         be = self.solver.be
@@ -311,8 +310,7 @@ class Inextensible(Integrator):
         state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
         self.iterations.append(self.tension.last.iterations)
         # measured on the membrane's own displacement, before the ALE's tangential one: that one is not a step of
-        # the dynamics and does not shrink with dt (the noise's area change scales as dt, so noisy runs are left to
-        # noise_step)
+        # the dynamics (the noise's area change scales as dt, so noisy runs are left to noise_step)
         state.strain_err = self.linearisation_strain(X, U * dt) if self.thermal is None else 0.0
         if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
             return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area,
