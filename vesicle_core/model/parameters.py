@@ -355,8 +355,9 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "none",
         "str",
         "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
-        "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain",
-        choices=("none", "area"),
+        "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain; shape also "
+        "keeps the reference edge lengths (weight 0.3), so sheared triangles regain their shape",
+        choices=("none", "area", "shape"),
     ),
     Parameter("tension_fixed", None, "float", "tension_space harmonic: null = the total area is held; a number = the "
               "uniform (l = 0) tension is fixed at it and the total area is free (a fixed-tension ensemble for "

@@ -206,6 +206,10 @@ class Inextensible(Integrator):
             from .tension_harmonic import AreaALE
 
             self.ale = AreaALE(self.space, cfg.h)
+        elif cfg.mesh_ale == "shape":
+            from .tension_harmonic import ShapeALE
+
+            self.ale = ShapeALE(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
                                      maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None)
 
@@ -298,11 +302,13 @@ class Inextensible(Integrator):
         if self.thermal is not None:  # noise and drift: known velocities the constraint projects, like the flow's
             self._restore_rho(state)
             u_inf = u_inf + self.thermal(X, dt, state.step)
+        # the area each triangle should have: the reference's, or the lipid area it carries (mesh_ale shape)
+        ref = mem.ref.face_area if state.lipid_area is None else xp.asarray(state.lipid_area)
         if self.space is None:
-            sigma, U = self.tension.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt, guess)
+            sigma, U = self.tension.solve(geo, F, u_inf, geo.area - ref, dt, guess)
         else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
             ts = self._restore_rho(state)
-            _, sigma, U = ts.solve(geo, F, u_inf, geo.area - mem.ref.face_area, dt,
+            _, sigma, U = ts.solve(geo, F, u_inf, geo.area - ref, dt,
                                    self._start(self.space.fit(self.solver.be.asnumpy(guess))), seed=state.step)
             state.tension_rho, state.tension_rho_age = ts.rho, ts._uses
         state.sigma_prev = state.sigma
@@ -312,10 +318,15 @@ class Inextensible(Integrator):
         # measured on the membrane's own displacement, before the ALE's tangential one: that one is not a step of
         # the dynamics (the noise's area change scales as dt, so noisy runs are left to noise_step)
         state.strain_err = self.linearisation_strain(X, U * dt) if self.thermal is None else 0.0
-        if self.ale is not None:  # tangential mesh motion holding the triangle areas outside the tension's space
-            return U * dt + self.ale(X, geo, mem.topo, U * dt, geo.area - mem.ref.face_area,
-                                     scale=dt / (cfg.dt_safety * self.bending_limit(state)))
-        return U * dt
+        if self.ale is None:
+            return U * dt
+        # tangential mesh motion holding the triangle areas outside the tension's space
+        w = self.ale(X, geo, mem.topo, U * dt, geo.area - ref, scale=dt / (cfg.dt_safety * self.bending_limit(state)))
+        if self.ale.carries_area:
+            be = self.solver.be
+            ref_host = be.asnumpy(ref) if state.lipid_area is None else state.lipid_area
+            state.lipid_area = self.ale.carry(ref_host, be.asnumpy(X + U * dt), be.asnumpy(w), self.tension.free)
+        return U * dt + w
 
     def _restore_rho(self, state):
         """The harmonic solver, with its rho_l measurement of the first call when the run was resumed."""

@@ -159,6 +159,12 @@ def _voronoi_weighted_gradient(geo: Geometry, wc):
     return G / (16.0 * A) - (S / A) * geo.grad_area
 
 
+def triangle_quality(geo: Geometry):
+    """4 sqrt(3) A / (sum of the squared edges) per triangle: 1 for an equilateral triangle, 0 for a degenerate one."""
+    xp = array_module(geo.area)
+    return 4.0 * xp.sqrt(3.0) * geo.area / (geo.edges**2).sum(axis=(0, 1))
+
+
 def _bending_corner_gradient(geo: Geometry, topo: Topology, kappa, area_model):
     """dE_b/dX per triangle corner, (3, 3, F); summing over corners of a vertex gives dE_b/dX_k."""
     Av = geo.vertex_area

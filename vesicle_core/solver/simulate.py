@@ -365,6 +365,10 @@ class _Run:
                       f"max_drift = {cfg.max_drift:g}; lower dt or raise Lambda", X)
         sc["dt_tau"] = self.dt_step
         sc["cg_iterations"] = float(state.cg_iterations[-1]) if state.cg_iterations else 0.0
+        q = B.triangle_quality(geo)  # 4 sqrt(3) A / sum l^2, and the triangle strain against the reference mesh
+        ref = mem.ref.face_area if state.lipid_area is None else self.xp.asarray(state.lipid_area)
+        sc.update(mesh_quality_min=float(q.min()), mesh_quality_median=float(self.xp.median(q)),
+                  triangle_strain_max=float(self.xp.abs(geo.area / ref - 1).max()))
         self.writer.append(self.be.asnumpy(X), self.be.asnumpy(sig_l).astype(np.float32), sc)
         state.n_frames += 1
         return sc

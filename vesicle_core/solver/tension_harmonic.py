@@ -315,6 +315,8 @@ class AreaALE:
     def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=ALE_ITERATIONS, max_step=0.05):
         self.space = space
         self.max_step = float(max_step)  # largest |w| per step, in h: the rest is left to the next steps
+        self.follow = 0.0  # ... plus this times the step's largest membrane displacement
+        self.carries_area = False  # whether the triangles carry their lipid along (ShapeALE.carry)
         self.capped = 0
         self.h = float(h)
         self.damp = float(damp)
@@ -334,7 +336,6 @@ class AreaALE:
         import scipy.sparse as sps
         import scipy.sparse.linalg as spla
 
-        from ..geometry.surface import vertex_normals
         from .tension import face_D_matrix
 
         t0 = time.perf_counter()
@@ -346,22 +347,19 @@ class AreaALE:
         D = face_D_matrix(geo, topo)  # (F, 3V)
         x = D @ dXn.ravel() + err
         y = -(x - sp.W * (sp.B @ sp.G_solve(sp.B.T @ x)))
-        n = vertex_normals(Xn, faces)
-        a = np.where(np.abs(n[:, 0:1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
-        t1 = cross_rows(n, a)
-        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = cross_rows(n, t1)
-        V = Xn.shape[0]
-        rows = np.concatenate([3 * np.arange(V)[:, None] + np.arange(3)[None, :]] * 2, axis=1).ravel()
-        iv = 2 * np.arange(V)[:, None]
-        cols = np.concatenate([np.repeat(iv, 3, 1), np.repeat(iv + 1, 3, 1)], axis=1).ravel()
-        T = sps.csr_matrix((np.concatenate([t1, t2], axis=1).ravel(), (rows, cols)), shape=(3 * V, 2 * V))
+        T = tangent_basis(Xn, faces)
         s = 1.0 / np.sqrt(sp.W)
-        A = sps.diags(s) @ (D @ T) * self.h  # unknowns in units of h
-        out = spla.lsqr(A, s * y, damp=self.damp, atol=1e-8, btol=1e-8, iter_lim=self.iter_lim)
-        w = (T @ (out[0] * self.h)).reshape(V, 3)
+        rows, rhs = [sps.diags(s) @ (D @ T) * self.h], [s * y]  # unknowns in units of h
+        for r, b in self._extra_rows(Xn, dXn, T):
+            rows.append(r * self.h)
+            rhs.append(b)
+        A = sps.vstack(rows).tocsr() if len(rows) > 1 else rows[0]
+        out = spla.lsqr(A, np.concatenate(rhs), damp=self.damp, atol=1e-8, btol=1e-8, iter_lim=self.iter_lim)
+        w = (T @ (out[0] * self.h)).reshape(-1, 3)
         wmax = float(np.sqrt((w**2).sum(axis=1)).max())
-        cap = self.max_step * self.h * min(1.0, float(scale))
+        # the membrane's own displacement may always be matched: a flow that shears the surface needs the mesh to
+        # slip as fast as it moves to keep the triangles' shape (mesh_ale shape); both parts shrink with dt
+        cap = self.max_step * self.h * min(1.0, float(scale)) + self.follow * float(np.sqrt((dXn**2).sum(axis=1)).max())
         if wmax > cap:  # a large tangential step would fold triangles on a wrinkled surface
             w *= cap / wmax
             self.capped += 1
@@ -369,3 +367,91 @@ class AreaALE:
         self.calls += 1
         self.seconds += time.perf_counter() - t0
         return topo.xp.asarray(w)
+
+    def _extra_rows(self, X, dX, T):
+        """Further least-squares rows (matrix on the 2V tangential unknowns, right-hand side): none here."""
+        return ()
+
+
+def tangent_basis(X, faces):
+    """(3V, 2V) sparse: two orthonormal tangent vectors per vertex (normal to the vertex normal), so that a tangential
+    vertex displacement is T @ (its two components)."""
+    import scipy.sparse as sps
+
+    from ..geometry.surface import vertex_normals
+
+    n = vertex_normals(X, faces)
+    a = np.where(np.abs(n[:, 0:1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+    t1 = cross_rows(n, a)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = cross_rows(n, t1)
+    V = X.shape[0]
+    rows = np.concatenate([3 * np.arange(V)[:, None] + np.arange(3)[None, :]] * 2, axis=1).ravel()
+    iv = 2 * np.arange(V)[:, None]
+    cols = np.concatenate([np.repeat(iv, 3, 1), np.repeat(iv + 1, 3, 1)], axis=1).ravel()
+    return sps.csr_matrix((np.concatenate([t1, t2], axis=1).ravel(), (rows, cols)), shape=(3 * V, 2 * V))
+
+
+class ShapeALE(AreaALE):
+    """AreaALE that also keeps the triangles' shape. Beside the area rows, every triangle asks its three edges to keep
+    their reference share of its squared perimeter, s_c = l_c^2 / (l_0^2 + l_1^2 + l_2^2), with a weight ``beta``:
+
+        beta^2 sum_t W_t sum_c |3 (ds_c[w] - (S_c - s_c(X) - ds_c[dX]))|^2,
+
+    ds_c the linearised change, S_c the reference mesh's shares. The shares fix the triangle's angles and not its
+    size, so these rows leave the area pattern to the area rows (a dilation changes no share). Holding every
+    triangle's area leaves the tangential motion almost no freedom (F = 2V - 4 area rows on 2V unknowns), so under a
+    shear of the surface the triangles keep their areas and lose their shape: the elongated vesicle's collapse
+    (docs/solver.md) came from such a patch, whose stiffest bending mode set a step of 1e-6 tau. The shape rows are
+    a Gauss-Newton step towards the reference angles (zero at the reference mesh, so no steady drift)."""
+
+    def __init__(self, space: HarmonicSpace, h, X0, faces, beta=0.1, **kw):
+        super().__init__(space, h, **kw)
+        self.follow = 1.0
+        self.carries_area = True
+        self.faces = np.asarray(faces, dtype=np.int64)
+        self.S_ref = self._shares(np.asarray(X0, dtype=float))[1]
+        self.beta = float(beta)
+        self.weight = 3.0 * self.beta * np.sqrt(space.W)  # per triangle: the area rows' sqrt(A0) x strain scale
+
+    def _shares(self, X):
+        """-> edge vectors (3, F, 3) (e_c = x_{c+2} - x_{c+1}, opposite corner c), shares s (3, F), sum of squares."""
+        f = self.faces
+        e = np.stack([X[f[:, (c + 2) % 3]] - X[f[:, (c + 1) % 3]] for c in range(3)])
+        l2 = (e**2).sum(axis=-1)
+        tot = l2.sum(axis=0)
+        return e, l2 / tot, tot
+
+    def _extra_rows(self, X, dX, T):
+        import scipy.sparse as sps
+
+        f, V = self.faces, X.shape[0]
+        nF = f.shape[0]
+        e, s, tot = self._shares(X)
+        rows, cols, vals = [], [], []
+        for c in range(3):  # row of share c; d s_c = sum_k (delta_ck - s_c) d(l_k^2) / tot
+            for k in range(3):
+                g = ((float(c == k) - s[c]) / tot * self.weight)[:, None] * 2.0 * e[k]  # on x_{k+2}; -g on x_{k+1}
+                for vert, sign in (((k + 2) % 3, 1.0), ((k + 1) % 3, -1.0)):
+                    rows.append(np.repeat(c * nF + np.arange(nF), 3))
+                    cols.append((3 * f[:, vert][:, None] + np.arange(3)).ravel())
+                    vals.append((sign * g).ravel())
+        G = sps.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * nF, 3 * V))
+        b = (self.weight * (self.S_ref - s)).ravel() - G @ dX.ravel()
+        return ((G @ T, b),)
+
+    def carry(self, lipid_area, X_moved, w, held):
+        """-> the lipid area each triangle carries after the mesh moved by w from X_moved (the membrane's new
+        positions): the held projection of the area change w makes, W B G^-1 B^T (A(X_moved + w) - A(X_moved)),
+        is lipid the triangles took along, not a strain for the tension to undo. Without it the shape rows' share
+        of that projection (they trade some area for shape) went into the next solve's right-hand side and moved
+        the membrane (1.2% in the second moments of a stretched vesicle at beta 0.1). The rest of the area change
+        is the mesh's, as in AreaALE. ``held``: the held coefficients; l = 0 is left out so that the total lipid
+        is conserved."""
+        from ..geometry.surface import triangle_areas
+
+        sp = self.space
+        dA = triangle_areas(X_moved + w, self.faces) - triangle_areas(X_moved, self.faces)
+        b = sp.B.T @ dA  # the held rows take it; the others (and l = 0: the total) get none
+        b[~held | (sp.l == 0)] = 0.0
+        return np.asarray(lipid_area, float) + sp.W * sp.faces(sp.G_solve(b))

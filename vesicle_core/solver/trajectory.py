@@ -64,6 +64,7 @@ class State:
     strain_err: float = 0.0  # inextensible: the last step's linearisation strain (dt_strain), before any ALE motion
     dt_bending: float = 0.0  # inextensible: the bending limit re-measured during the run (tau; 0: the start's)
     bending_mode: object = None  # its power iteration's last vector, (V, 3): the next measurement's start
+    lipid_area: object = None  # mesh_ale shape: the lipid area each triangle carries, (F,) on the host (None: A0)
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -77,6 +78,8 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
             data[name] = (("n_face",), be.asnumpy(getattr(state, name)))
     if state.bending_mode is not None:
         data["bending_mode"] = (("n_node", "xyz"), be.asnumpy(state.bending_mode))
+    if state.lipid_area is not None:
+        data["lipid_area"] = (("n_face",), np.asarray(state.lipid_area, dtype=float))
     if state.tension_rho is not None:
         data["tension_rho"] = (("n_l",), np.asarray(state.tension_rho, dtype=float))
     if state.cg_iterations:
@@ -121,6 +124,7 @@ def load_checkpoint(path: Path, xp):
         tension_rho_age=int(a.get("tension_rho_age", 0)),
         strain_err=float(a.get("strain_err", 0.0)), dt_bending=float(a.get("dt_bending", 0.0)),
         bending_mode=xp.asarray(ds["bending_mode"].values) if "bending_mode" in ds else None,
+        lipid_area=ds["lipid_area"].values.copy() if "lipid_area" in ds else None,
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
@@ -130,7 +134,8 @@ class TrajectoryWriter:
     """Appends frames to trajectory.partial.nc (unlimited time dimension); finalize() renames it."""
 
     FRAME_VARS = ("t_tau", "tension", "area", "volume", "area_drift", "volume_drift", "bending_energy",
-                  "tension_energy", "flow_sign", "dt_tau", "cg_iterations")
+                  "tension_energy", "flow_sign", "dt_tau", "cg_iterations", "mesh_quality_min",
+                  "mesh_quality_median", "triangle_strain_max")
 
     VELOCITY_VARS = ("node_ux", "node_uy", "node_uz")
 
@@ -172,7 +177,8 @@ class TrajectoryWriter:
                 "local surface tension per triangle (penalty Lambda (A_l - A_l0)/A_l0, or the solved tension)")}))
             units = {"t_tau": "tau", "tension": "kappa/R^2", "area": "R^2", "volume": "R^3", "area_drift": "1",
                      "volume_drift": "1", "bending_energy": "kappa", "tension_energy": "kappa", "flow_sign": "1",
-                     "dt_tau": "tau", "cg_iterations": "1"}
+                     "dt_tau": "tau", "cg_iterations": "1", "mesh_quality_min": "1", "mesh_quality_median": "1",
+                     "triangle_strain_max": "1"}
             for name in self.FRAME_VARS:
                 v = nc.createVariable(name, "f8", ("time",))
                 v.setncatts(cf_unit_attrs({"units": units[name]}))
@@ -253,7 +259,8 @@ class TrajectoryWriter:
                 nc["node_z"][i, :] = f["X"][:, 2]
                 nc["face_tension"][i, :] = f["tension"]
                 for k in self.FRAME_VARS:
-                    nc[k][i] = f["scalars"][k]
+                    if k in nc.variables:  # a run resumed from a file of an older version lacks the newer ones
+                        nc[k][i] = f["scalars"][k]
                 if f["U"] is not None:
                     for c, name in enumerate(self.VELOCITY_VARS):
                         nc[name][i, :] = f["U"][:, c]
