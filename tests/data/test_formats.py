@@ -137,3 +137,23 @@ def test_cf_unit_attrs_is_idempotent_and_leaves_cf_units_alone():
     assert cf_unit_attrs({"units": "rad"}) == {"units": "rad"}
     assert cf_unit_attrs({"units": "same as sigma"})["nondimensional_units"] == "same as sigma"
     assert cf_unit_attrs({"units": "kappa R-2"}) == {"units": "1", "nondimensional_units": "kappa/R^2"}
+
+
+def test_the_per_frame_scalars_are_those_docs_datasets_lists(files):
+    """docs/datasets.md's table of per-frame scalars names exactly what a trajectory stores along time (one home:
+    TrajectoryWriter.FRAME_VARS, checked against the doc and a written file)."""
+    import re
+    from pathlib import Path
+
+    from vesicle_core.solver.trajectory import TrajectoryWriter
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "datasets.md").read_text()
+    section = doc.split("### Per-frame scalars of a trajectory")[1].split("\n## ")[0]
+    listed = {name for row in section.splitlines() if row.startswith("| `")
+              for name in re.findall(r"`([a-z_0-9]+)`", row.split("|")[1])}
+    assert listed == set(TrajectoryWriter.FRAME_VARS)
+    with xr.open_dataset(files["trajectory"]) as ds:
+        along_time = {k for k, v in ds.variables.items() if v.dims == ("time",)}
+    assert set(TrajectoryWriter.FRAME_VARS) <= along_time
+    q = xr.open_dataset(files["trajectory"]).mesh_quality_min.values
+    assert np.all((q > 0) & (q <= 1))
