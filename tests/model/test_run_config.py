@@ -84,6 +84,11 @@ def test_runconfig_checks_and_derives():
         RunConfig(dt="adaptive")
     with pytest.raises(ConfigError, match="inextensible"):
         RunConfig(scheme="inextensible", Re=1e-3)
+    for ale in ("area", "shape"):  # the triangle tension holds every triangle itself: no mesh motion for it
+        with pytest.raises(ConfigError, match=f"mesh_ale '{ale}' applies to tension_space 'harmonic'"):
+            RunConfig(scheme="inextensible", tension_space="triangle", mesh_ale=ale)
+    with pytest.raises(ConfigError, match="mesh_ale"):
+        RunConfig(mesh_ale="angles")
     with pytest.raises(dataclasses.FrozenInstanceError):
         c.N = 64
     assert RunConfig.from_dict({"N": 64}) == RunConfig(N=64)

@@ -74,8 +74,8 @@ class RunConfig:
             raise ConfigError("tension_space 'harmonic' has its own preconditioner (the measured area rate per l); "
                               "cg_precond 'local' applies to tension_space 'triangle' only")
         if self.mesh_ale != "none" and self.tension_space != "harmonic":
-            raise ConfigError("mesh_ale 'area' applies to tension_space 'harmonic' only (the triangle tension holds "
-                              "every triangle's area itself)")
+            raise ConfigError(f"mesh_ale '{self.mesh_ale}' applies to tension_space 'harmonic' only (the triangle "
+                              "tension holds every triangle's area itself)")
         if self.tension_fixed is not None and (self.scheme != "inextensible" or self.tension_space != "harmonic"):
             raise ConfigError(f"tension_fixed = {self.tension_fixed:g} needs scheme 'inextensible' with tension_space "
                               f"'harmonic' (it fixes that space's l = 0 coefficient); got scheme '{self.scheme}', "
