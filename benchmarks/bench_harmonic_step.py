@@ -43,7 +43,7 @@ from vesicle_core.solver.simulate import run  # noqa: E402
 def patch(a):
     """Set the solver's constants for this process: the ALE's LSQR iterations and the rho_l measurement."""
     TH.ALE_ITERATIONS = a.ale_iterations
-    TH.AreaALE.__init__.__defaults__ = (1e-3, a.ale_iterations, a.ale_cap)
+    TH.AreaALE.__init__.__defaults__ = (1e-3, a.ale_iterations, a.ale_cap, 1.0)
     if a.rho == "per-l":
         TH.EXACT_L = 10**6
     TH.HarmonicTensionSolver.__init__.__defaults__ = (1e-5, 200, a.rho_refresh, a.rho_stale, TH.RHO_PROBES, 0)

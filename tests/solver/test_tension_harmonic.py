@@ -296,8 +296,9 @@ def test_shape_ale_leaves_the_reference_mesh_alone():
 
 
 def test_area_ale_moves_the_mesh_at_a_bounded_speed():
-    """The ALE's tangential displacement is capped at max_step h times the step's fraction of a full step (scale): a
-    short step moves the mesh proportionally less, in the same direction, and only tangentially."""
+    """The ALE's tangential displacement is capped at max_step h times the step's fraction of a full step (scale),
+    plus the step's largest membrane displacement: a short step moves the mesh proportionally less, in the same
+    direction, and only tangentially."""
     from vesicle_core.geometry.surface import vertex_normals
     from vesicle_core.solver.tension_harmonic import AreaALE
 
@@ -317,6 +318,11 @@ def test_area_ale_moves_the_mesh_at_a_bounded_speed():
     np.testing.assert_allclose(w4, 0.25 * w1, atol=1e-12)
     n = vertex_normals(m.vertices, m.faces)
     assert np.abs((w1 * n).sum(axis=1)).max() < 1e-12
+    # ... plus the step's own largest membrane displacement: the mesh may move as fast as the membrane does
+    shift = np.zeros_like(m.vertices)
+    shift[:, 0] = 0.2 * h
+    wf = ale(m.vertices, geo, topo, shift, err, scale=0.25)
+    assert np.linalg.norm(wf, axis=1).max() == pytest.approx((0.25 * ale.max_step + 0.2) * h, rel=1e-9)
 
 
 def test_shape_ale_carries_the_held_area_it_moves():
