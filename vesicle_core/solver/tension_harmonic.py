@@ -445,11 +445,11 @@ class ShapeALE(AreaALE):
     def carry(self, lipid_area, X_moved, w, held):
         """-> the lipid area each triangle carries after the mesh moved by w from X_moved (the membrane's new
         positions): the held projection of the area change w makes, W B G^-1 B^T (A(X_moved + w) - A(X_moved)),
-        is lipid the triangles took along, not a strain for the tension to undo. Without it the shape rows' share
-        of that projection (they trade some area for shape) went into the next solve's right-hand side and moved
-        the membrane (1.2% in the second moments of a stretched vesicle at beta 0.1). The rest of the area change
-        is the mesh's, as in AreaALE. ``held``: the held coefficients; l = 0 is left out so that the total lipid
-        is conserved."""
+        is lipid the triangles took along, not a strain for the tension to undo. Without it the mesh's share of
+        that projection went into the next solve's right-hand side and moved the membrane (0.6% in the second
+        moments of a stretched vesicle at beta 0.1). The rest of the area change (the triangle scale, which the
+        tension cannot see) is the mesh's, as in AreaALE. ``held``: the held coefficients; l = 0 is left out so
+        that the total lipid is conserved."""
         from ..geometry.surface import triangle_areas
 
         sp = self.space
