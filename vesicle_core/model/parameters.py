@@ -356,7 +356,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
         "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain; shape also "
-        "keeps the reference edge lengths (weight 0.3), so sheared triangles regain their shape",
+        "keeps the triangles' angles (a shear) and carries the lipid area the mesh moves",
         choices=("none", "area", "shape"),
     ),
     Parameter("tension_fixed", None, "float", "tension_space harmonic: null = the total area is held; a number = the "
