@@ -14,7 +14,8 @@ time-integrated displacement of eq. (29) (finite Re).
   fastest wrinkle growth of the perturbation analysis, the bending and tension stability limits and the
   background flow.
   ``tension_space: harmonic`` carries the tension in real spherical harmonics instead
-  (:mod:`vesicle_core.solver.tension_harmonic`), optionally with a tangential mesh motion (``mesh_ale: area``).
+  (:mod:`vesicle_core.solver.tension_harmonic`), optionally with a tangential mesh motion (``mesh_ale: area``, or
+  ``shape``, which also keeps the triangles' angles and carries the lipid area the mesh moves).
 """
 
 from __future__ import annotations
