@@ -415,6 +415,29 @@ class ShapeALE(AreaALE):
         self.S_ref = self._shares(np.asarray(X0, dtype=float))[1]
         self.beta = float(beta)
         self.weight = 3.0 * self.beta * np.sqrt(space.W)  # per triangle: the area rows' sqrt(A0) x strain scale
+        self._pattern = self._row_pattern(np.asarray(X0).shape[0])
+
+    def _row_pattern(self, V):
+        """The shape rows' sparsity, fixed by the faces: CSR indptr and indices, and each (c, k, vertex, xyz) entry's
+        slot in them (an entry for the same vertex twice in a row adds up), so a call fills in the values only."""
+        import scipy.sparse as sps
+
+        f, nF = self.faces, self.faces.shape[0]
+        rows, cols = [], []
+        for c in range(3):
+            for k in range(3):
+                for vert in ((k + 2) % 3, (k + 1) % 3):
+                    rows.append(np.repeat(c * nF + np.arange(nF), 3))
+                    cols.append((3 * f[:, vert][:, None] + np.arange(3)).ravel())
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        P = sps.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(3 * nF, 3 * V))
+        P.sum_duplicates()
+        P.sort_indices()
+        # slot of each entry: the position of its (row, col) among the CSR's, whose keys are sorted
+        key = rows * (3 * V) + cols
+        csr_key = np.repeat(np.arange(3 * nF), np.diff(P.indptr)) * (3 * V) + P.indices
+        slot = np.searchsorted(csr_key, key)
+        return P.indptr, P.indices, slot, (3 * nF, 3 * V)
 
     def _shares(self, X):
         """-> edge vectors (3, F, 3) (e_c = x_{c+2} - x_{c+1}, opposite corner c), shares s (3, F), sum of squares."""
@@ -427,18 +450,15 @@ class ShapeALE(AreaALE):
     def _extra_rows(self, X, dX, T):
         import scipy.sparse as sps
 
-        f, V = self.faces, X.shape[0]
-        nF = f.shape[0]
         e, s, tot = self._shares(X)
-        rows, cols, vals = [], [], []
+        vals = []
         for c in range(3):  # row of share c; d s_c = sum_k (delta_ck - s_c) d(l_k^2) / tot
             for k in range(3):
                 g = ((float(c == k) - s[c]) / tot * self.weight)[:, None] * 2.0 * e[k]  # on x_{k+2}; -g on x_{k+1}
-                for vert, sign in (((k + 2) % 3, 1.0), ((k + 1) % 3, -1.0)):
-                    rows.append(np.repeat(c * nF + np.arange(nF), 3))
-                    cols.append((3 * f[:, vert][:, None] + np.arange(3)).ravel())
-                    vals.append((sign * g).ravel())
-        G = sps.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(3 * nF, 3 * V))
+                vals += [g.ravel(), -g.ravel()]  # the order of _row_pattern's entries
+        indptr, indices, slot, shape = self._pattern
+        data = np.bincount(slot, weights=np.concatenate(vals), minlength=indices.size)
+        G = sps.csr_matrix((data, indices, indptr), shape=shape)
         b = (self.weight * (self.S_ref - s)).ravel() - G @ dX.ravel()
         return ((G @ T, b),)
 
