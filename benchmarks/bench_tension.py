@@ -24,7 +24,7 @@ import scipy.linalg as sl
 from vesicle_core.geometry import mesh as M
 from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver
-from vesicle_core.solver.step_size import power_dt
+from vesicle_core.solver.step_size import stability_dt
 from vesicle_core.solver.tension import TensionSolver
 
 
@@ -42,7 +42,7 @@ def stability(mesh, N, chi, coupling="kernel"):
     for sigma in (0.0, 2000.0, 8000.0):
         s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible", coupling=coupling))
         s.membrane.forces = _with_uniform_tension(s.membrane.forces, sigma)
-        _, lam = power_dt(s, s.xp.asarray(mesh.vertices), iters=60)
+        _, lam = stability_dt(s, s.xp.asarray(mesh.vertices), max_iter=60)
         ratio = f"{lam * s.grid.h / sigma:.3f}" if sigma else "-"
         print(f"sigma = {sigma:6.0f}: |lam|max = {lam:.4g} /tau   |lam| h / sigma = {ratio}", flush=True)
 

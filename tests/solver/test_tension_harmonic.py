@@ -187,8 +187,8 @@ def test_harmonic_run_tension_in_the_space_and_smooth(tmp_path):
     steps = ds.attrs["steps"]
     refreshes = ds.attrs["tension_rho_refreshes"]
     per_refresh = min(L, EXACT_L) + 1 + (RHO_PROBES if L > EXACT_L else 0)  # l <= 2 alone, the rest together
-    bending = ds.attrs["bending_solves"]  # the bending limit's re-measurements, two solves per power iteration
-    assert bending % 2 == 0 and bending <= 2 * 20 * (steps // BENDING_REFRESH)
+    bending = ds.attrs["bending_solves"]  # the bending limit's re-measurements, one solve per Arnoldi iteration
+    assert bending <= 20 * (steps // BENDING_REFRESH)
     assert ds.attrs["stokes_solves"] == (steps + round(ds.attrs["cg_iterations_mean"] * steps) + refreshes * per_refresh
                                          + bending)
     f = m.faces

@@ -231,7 +231,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "dt",
         "power",
         "float",
-        "time step: power iteration on the linearised operator, the stability "
+        "time step: power (the stiffest mode of the linearised operator, by Arnoldi iteration), the stability "
         "formula (formula_dt: area penalty 40 h/Lambda, bending 13-20 h^3), or fixed; the "
         "inextensible scheme re-estimates it every step",
         "tau",

@@ -151,7 +151,7 @@ class Inextensible(Integrator):
 
         super().__init__(solver, dt_bending, X0)
         cfg = self.cfg
-        self.dt_bending = dt_bending  # stability limit of the bending force (power iteration), tau
+        self.dt_bending = dt_bending  # stability limit of the bending force (step_size.stiffest_mode), tau
         self.mobility = IBMMobility(solver.coupler, solver.stokes, solver._grid_buf)
         mem = solver.membrane
         local = None
@@ -253,12 +253,11 @@ class Inextensible(Integrator):
         return state.dt_bending if state.dt_bending > 0 else self.dt_bending
 
     def _measure_bending(self, state) -> None:
-        """Power iteration at the current shape, from the last measurement's vector (random, seeded by the step,
+        """Arnoldi iteration at the current shape, from the last measurement's vector (random, seeded by the step,
         at the first): the state carries both, so a resumed run measures what the first call did."""
-        from .step_size import power_iteration
+        from .step_size import stiffest_mode
 
-        lam, v, solves = power_iteration(self.solver, state.X, v0=state.bending_mode, iters=20, rtol=1e-2,
-                                         seed=state.step)
+        lam, v, solves = stiffest_mode(self.solver, state.X, v0=state.bending_mode, max_iter=20, seed=state.step)
         self._bending_step = state.step
         self.bending_solves += solves
         if lam > 0:

@@ -63,7 +63,7 @@ class State:
     tension_rho_age: int = 0  # steps since that refresh
     strain_err: float = 0.0  # inextensible: the last step's linearisation strain (dt_strain), before any ALE motion
     dt_bending: float = 0.0  # inextensible: the bending limit re-measured during the run (tau; 0: the start's)
-    bending_mode: object = None  # its power iteration's last vector, (V, 3): the next measurement's start
+    bending_mode: object = None  # its stiffest mode (Arnoldi), (V, 3): the next measurement's start
     lipid_area: object = None  # mesh_ale shape: the lipid area each triangle carries, (F,) on the host (None: A0)
 
 
