@@ -249,6 +249,22 @@ def test_paper_cpu_config_plans_on_top_of_the_default(tmp_path):
     assert r.stdout.count("\nmesh_ale: shape\n") == 2 and r.stdout.count("\nmesh_ale: area\n") == 5
 
 
+def test_paper_converged_config_runs_each_point_at_its_own_resolution(tmp_path):
+    """config/paper_converged.yaml: the paper's seven runs on top of config.yaml, S = 1106.5 and 4448 at 192^3 with
+    their 21398-vertex mesh, the rest at 128^3, the elongated two with mesh_ale shape; the 192^3 runs start first."""
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "-n", "-p", "--configfile", "config/paper_converged.yaml")
+    assert r.returncode == 0, r.stderr + r.stdout
+    jobs = planned_jobs(r.stdout)
+    sims = {j["wildcards"]["case_id"]: j for j in jobs if j["rule"] == "simulate"}
+    assert sorted(sims) == sorted([f"D0.116_S{S}_N128_Q9512" for S in ("227", "553", "2224")]
+                                  + ["D0.116_S1106.5_N192_Q21398", "D0.116_S4448_N192_Q21398",
+                                     "D0.997_S237_N128_Q9512", "D0.997_S947_N128_Q9512"])
+    assert all(j.get("priority", 0) == (192 if "_N192_" in c else 128) for c, j in sims.items())
+    assert r.stdout.count("\nmesh_ale: shape\n") == 2 and r.stdout.count("\nmesh_ale: area\n") == 5
+    assert sum(j["rule"] == "theory" for j in jobs) == 14 + 7  # the PA points of Fig. 4, and one per run
+
+
 def test_validation_config_plans(tmp_path):
     wd = workflow_copy(tmp_path)
     r = snakemake(wd, "-n", "-p", "--configfile", "config/validation.yaml")

@@ -236,6 +236,41 @@ def test_plot_lstar_draws_each_delta_at_its_finest_grid(tmp_path, monkeypatch):
     assert sum(len(ln.get_xdata()) for ln in points) == 3
 
 
+def test_a_set_with_each_S_at_its_own_resolution_is_fitted_as_one(tmp_path, monkeypatch):
+    """Three S at 128^3, two at 192^3 and one S on both rungs: a group (N = FINEST) takes each S at its finest rung,
+    its exponent is the OLS slope over those five points, the per-resolution groups stay, and Fig. 4 draws the five
+    points and that group's line, with both grids in the legend."""
+    from vesicle_core.analysis.fits import fit_power_law
+    from vesicle_core.analysis.sweep_fits import FINEST, sweep_fit_dataset
+
+    dss, finest = [], {}
+    runs = [(128, 227.0), (128, 553.0), (128, 2224.0), (192, 553.0), (192, 1106.5), (192, 4448.0)]
+    for i, (N, S) in enumerate(runs):
+        ds = spectra_like(S=S, kind="spectra", seed=i, maps=False)
+        ds["l_star"] = ((), 4.0 * S**0.43 * (1.0 + 0.01 * i) * (0.9 if N == 128 else 1.0))
+        ds.attrs.update(case_id=f"S{S:g}_N{N}", N=N, mesh_n_vertices=9512 if N == 128 else 21398)
+        dss.append(ds)
+        if N >= finest.get(S, (0, 0))[0]:
+            finest[S] = (N, float(ds["l_star"]))
+    fit = sweep_fit_dataset(dss)
+    assert sorted(fit.group_N.values.tolist()) == [FINEST, 128, 192]
+    g = int(np.flatnonzero(fit.group_N.values == FINEST)[0])
+    assert int(fit.n_cases[g]) == 5
+    x = np.array(sorted(finest))
+    ref = fit_power_law(x, np.array([finest[S][1] for S in x]), 0.95)
+    assert float(fit.l_star_exponent[g]) == pytest.approx(ref.exponent, rel=1e-12)
+    assert float(fit.l_star_ci_low[g]) == pytest.approx(ref.ci_low, rel=1e-12)
+    figs = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, outputs, dpi=150: figs.append(fig))
+    plots.plot_lstar(fit, tmp_path / "l.png", guide=False)
+    labels = figs[0].axes[0].get_legend_handles_labels()[1]
+    assert any("N = 128/192" in x for x in labels)
+    assert [x for x in labels if "fit" in x] == [f"IBM fit: $S^{{{ref.exponent:.3f}}}$, 95% CI [{ref.ci_low:.3f}, "
+                                                 f"{ref.ci_high:.3f}]"]
+    points = [ln for ln in figs[0].axes[0].lines if ln.get_linestyle() == "None"]
+    assert sum(len(ln.get_xdata()) for ln in points) == 5
+
+
 def test_an_ensemble_is_fitted_as_one_group_with_its_spread_per_S(tmp_path, monkeypatch):
     """Four noise seeds at three S: one fit group (kT in its key), per-S mean and sd over the seeds that equal
     numpy's, a deterministic run at the same S in a group of its own, and Fig. 4 draws the ensemble's error bars."""

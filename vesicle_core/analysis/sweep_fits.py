@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import ConfigError
 from .fits import TensionDecayFit, fit_power_law, tension_decay
 
-__all__ = ["case_decay", "sweep_fit_dataset"]
+__all__ = ["FINEST", "case_decay", "sweep_fit_dataset"]
 
 
 def case_decay(ds, kind, confidence: float = 0.95) -> TensionDecayFit:
@@ -24,27 +24,53 @@ def case_decay(ds, kind, confidence: float = 0.95) -> TensionDecayFit:
                          rms_tol=0.01 if kind == "theory" else 0.05)
 
 
+FINEST = -1  # group_N and group_vertices of a group that takes each S at its finest resolution
+
+
 def _group_key(r):
     """A fit group: one kind, Delta, resolution and temperature (the seeds of an ensemble fall in one group)."""
     return (r["kind"], r["delta"], r["N"], r["vertices"], r["kT"])
 
 
-def _ensemble_points(rows, groups) -> dict:
+def _groups(rows) -> dict:
+    """Fit groups -> their rows: one per resolution, and, for a simulated Delta (and kT) run at several resolutions,
+    one more (N = vertices = FINEST) that takes each S at its finest rung (largest N, then vertex count), so that a
+    sweep whose points were each run where their l_* stopped moving is fitted as one set."""
+    groups = {}
+    for r in rows:
+        groups.setdefault(_group_key(r), []).append(r)
+    ladders = {}
+    for kind, delta, N, nv, kT in groups:
+        if kind == "simulation":
+            ladders.setdefault((delta, kT), set()).add((N, nv))
+    for (delta, kT), rungs in ladders.items():
+        if len(rungs) < 2:
+            continue
+        sel = [r for r in rows if r["kind"] == "simulation" and r["delta"] == delta and r["kT"] == kT]
+        finest = {}
+        for r in sel:
+            finest[r["S"]] = max(finest.get(r["S"], (0, 0)), (r["N"], r["vertices"]))
+        best = [r for r in sel if (r["N"], r["vertices"]) == finest[r["S"]]]
+        groups[("simulation", delta, FINEST, FINEST, kT)] = best
+    return dict(sorted(groups.items()))
+
+
+def _ensemble_points(groups: dict) -> dict:
     """Per (group, S): the number of seeds and the mean and sample standard deviation of l_*, l_peak, t_* over them
     (dimension ``point``; sd NaN for a single run). An ensemble's l_* is a distribution, not one value."""
-    pts = sorted({(groups.index(_group_key(r)), r["S"]) for r in rows})
     out = {"point_group": [], "point_S": [], "point_n_seeds": []}
     for name in ("l_star", "l_peak", "t_star"):
         out[f"point_{name}_mean"], out[f"point_{name}_sd"] = [], []
-    for g, S in pts:
-        sel = [r for r in rows if groups.index(_group_key(r)) == g and r["S"] == S]
-        out["point_group"].append(g)
-        out["point_S"].append(S)
-        out["point_n_seeds"].append(len(sel))
-        for name in ("l_star", "l_peak", "t_star"):
-            v = np.array([r[name] for r in sel], dtype=float)
-            out[f"point_{name}_mean"].append(float(np.mean(v)))
-            out[f"point_{name}_sd"].append(float(np.std(v, ddof=1)) if v.size > 1 else math.nan)
+    for g, members in enumerate(groups.values()):
+        for S in sorted({r["S"] for r in members}):
+            sel = [r for r in members if r["S"] == S]
+            out["point_group"].append(g)
+            out["point_S"].append(S)
+            out["point_n_seeds"].append(len(sel))
+            for name in ("l_star", "l_peak", "t_star"):
+                v = np.array([r[name] for r in sel], dtype=float)
+                out[f"point_{name}_mean"].append(float(np.mean(v)))
+                out[f"point_{name}_sd"].append(float(np.std(v, ddof=1)) if v.size > 1 else math.nan)
     return {k: ("point", np.array(v)) for k, v in out.items()}
 
 
@@ -55,9 +81,10 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     (dominant mode at t_*), ``t_star``, the series ``sigma(time)`` and attrs ``delta`` and ``S``. A group with
     fewer than ``min_points`` cases, or a case whose tension has no clean stage 2, gets NaN and a ``note``.
     Returns a Dataset with a ``case`` dimension (per-file values), a ``group`` dimension (per-sweep fits: one
-    kind, Delta, N, vertex count and kT) and a ``point`` dimension (per group and S: mean and spread over the
-    noise seeds of an ensemble). An ensemble's fit uses every seed's l_* as a point, so its interval carries the
-    scatter over seeds.
+    kind, Delta, N, vertex count and kT; where a simulated Delta was run at several resolutions, one more group with
+    N = vertices = FINEST (-1) takes each S at its finest rung) and a ``point`` dimension (per group and S: mean and
+    spread over the noise seeds of an ensemble). An ensemble's fit uses every seed's l_* as a point, so its interval
+    carries the scatter over seeds.
     """
     import xarray as xr
 
@@ -71,7 +98,7 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
         except KeyError as exc:
             raise ConfigError(f"dataset {ds.attrs.get('case_id', '?')} lacks the attribute {exc}") from None
         # a sweep group is one resolution: cases at other N or vertex counts (convergence copies, box tests)
-        # are fitted separately
+        # are fitted separately, and together in one more group that takes each S at its finest rung (_groups)
         N = int(ds.attrs.get("N", 0)) if kind == "simulation" else 0
         nv = int(ds.attrs.get("mesh_n_vertices", ds.attrs.get("n_node", 0))) if kind == "simulation" else 0
         kT = float(ds.attrs.get("kT", 0.0)) if kind == "simulation" else 0.0
@@ -91,14 +118,13 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     if not rows:
         raise ConfigError("no datasets to fit")
     case = {k: ("case", np.array([r[k] for r in rows])) for k in rows[0]}
-    groups = sorted({_group_key(r) for r in rows})
+    groups = _groups(rows)
     gdata = {k: [] for k in ("group_kind", "group_delta", "group_N", "group_vertices", "group_kT", "n_cases")}
     for name in ("l_star", "l_peak"):
         for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
             gdata[f"{name}_{k}"] = []
-    for key in groups:
+    for key, sel in groups.items():
         kind, delta, N, nv, kT = key
-        sel = [r for r in rows if _group_key(r) == key]
         gdata["group_kind"].append(kind)
         gdata["group_delta"].append(delta)
         gdata["group_N"].append(N)
@@ -114,7 +140,7 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
             for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
                 gdata[f"{name}_{k}"].append(getattr(fit, k) if fit is not None else math.nan)
     group = {k: ("group", np.array(v)) for k, v in gdata.items()}
-    out = xr.Dataset({**case, **group, **_ensemble_points(rows, groups)})
+    out = xr.Dataset({**case, **group, **_ensemble_points(groups)})
     units = {"S": "1", "delta": "1", "l_star": "1", "l_peak": "1", "t_star": "1/gamma_dot"}
     for k, u in units.items():
         out[k].attrs["units"] = u

@@ -123,7 +123,9 @@ def _cmd_fit(a):
     for i in range(out.sizes["group"]):
         g = out.isel(group=i)
         hot = f" kT={float(g.group_kT):g}" if float(g.group_kT) > 0 else ""
-        print(f"{str(g.group_kind.values):>10} Delta={float(g.group_delta):g}{hot} n={int(g.n_cases)}: "
+        N = int(g.group_N)
+        grid = "" if N == 0 else " N=finest at each S" if N < 0 else f" N={N} ({int(g.group_vertices)} vertices)"
+        print(f"{str(g.group_kind.values):>10} Delta={float(g.group_delta):g}{grid}{hot} n={int(g.n_cases)}: "
               f"l_* ~ S^{float(g.l_star_exponent):.3f} [{float(g.l_star_ci_low):.3f}, {float(g.l_star_ci_high):.3f}], "
               f"l_peak ~ S^{float(g.l_peak_exponent):.3f}")
     for i in np.flatnonzero(out["point_n_seeds"].values > 1):

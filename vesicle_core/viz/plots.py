@@ -258,20 +258,37 @@ def _source_name(kind, kT=0.0):
     return ("IBM" if kind == "simulation" else "PA") + (f" (kT = {kT:g})" if kT > 0 else "")
 
 
-def _draw_ensembles(ax, ds, measure, colour, finest):
+def _drawn_groups(ds, keys) -> set:
+    """The simulation groups Fig. 4 draws per Delta: the one that takes each S at its finest rung where the sweep has
+    several resolutions (group_N < 0, sweep_fits.FINEST), else the finest resolution's."""
+    if "group" not in ds.dims or "group_N" not in ds.variables:
+        return set()
+    gk = np.asarray(ds["group_kind"].values).astype(str)
+    gN = np.asarray(ds["group_N"].values, dtype=int)
+    gd = [_group_key(d) for d in np.asarray(ds["group_delta"].values, dtype=float)]
+    out = set()
+    for k in keys:
+        sim = [i for i in range(len(gk)) if gk[i] == "simulation" and gd[i] == k]
+        mixed = [i for i in sim if gN[i] < 0]
+        out.update(mixed or [i for i in sim if gN[i] == max((gN[j] for j in sim), default=0)])
+    return out
+
+
+def _draw_ensembles(ax, ds, measure, colour, drawn):
     """Mean +- sd over the noise seeds at each S of an ensemble (fit's ``point`` dimension, > 1 seed)."""
     if "point" not in ds.dims or f"point_{measure}_mean" not in ds.variables:
         return
     n = np.asarray(ds["point_n_seeds"].values, dtype=int)
     g = np.asarray(ds["point_group"].values, dtype=int)
+    first = True
     for i in np.flatnonzero(n > 1):
-        k = _group_key(float(ds["group_delta"].values[g[i]]))
-        if str(ds["group_kind"].values[g[i]]) != "simulation" or int(ds["group_N"].values[g[i]]) != finest.get(k):
+        if int(g[i]) not in drawn:
             continue
+        k = _group_key(float(ds["group_delta"].values[g[i]]))
         ax.errorbar(float(ds["point_S"].values[i]), float(ds[f"point_{measure}_mean"].values[i]),
                     yerr=float(ds[f"point_{measure}_sd"].values[i]), fmt="D", ms=5, capsize=3, color=colour[k],
-                    mfc="white", label=f"IBM ensemble mean +- sd ({n[i]} seeds)" if i == np.flatnonzero(n > 1)[0]
-                    else None)
+                    mfc="white", label=f"IBM ensemble mean +- sd ({n[i]} seeds)" if first else None)
+        first = False
 
 
 def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guide=True):
@@ -279,8 +296,9 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
 
     ``fit`` is the dataset of ``vesicle fit`` (vesicle_core.analysis.sweep_fits.sweep_fit_dataset): per-case points
     on the ``case`` dimension and per-group power laws on ``group``. Groups with fewer than three points have NaN
-    exponents and are drawn without a line. Simulations are drawn at each Delta's finest grid only (a resolution
-    study's coarser rungs, seeds and variations would otherwise pile up at the same S), with that N in the legend.
+    exponents and are drawn without a line. Simulations are drawn at each (Delta, S)'s finest grid only (a
+    resolution study's coarser rungs, seeds and variations would otherwise pile up at the same S), with the N in the
+    legend; where the points' finest grids differ between S, the line is the fit over each S at its finest rung.
     An ensemble (several noise seeds at one S) adds its mean +- sd over the seeds.
     """
     plt = _mpl()
@@ -297,9 +315,15 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
     keys = sorted({_group_key(d) for d in delta})
     N = np.asarray(ds["N"].values, dtype=int) if "N" in ds.variables else np.zeros(len(S), dtype=int)
     kT = np.asarray(ds["kT"].values, dtype=float) if "kT" in ds.variables else np.zeros(len(S))
-    finest = {k: N[(kind == "simulation") & np.array([_group_key(d) == k for d in delta])].max(initial=0)
-              for k in keys}
-    shown = (kind != "simulation") | np.array([N[i] == finest[_group_key(d)] for i, d in enumerate(delta)])
+    nv = np.asarray(ds["vertices"].values, dtype=int) if "vertices" in ds.variables else np.zeros(len(S), dtype=int)
+    sim = kind == "simulation"
+    finest = {}  # (Delta, S) -> its finest (N, vertices) among the simulations
+    for i in np.flatnonzero(sim):
+        key = (_group_key(delta[i]), S[i])
+        finest[key] = max(finest.get(key, (0, 0)), (int(N[i]), int(nv[i])))
+    shown = ~sim | np.array([(int(N[i]), int(nv[i])) == finest.get((_group_key(d), S[i])) for i, d in enumerate(delta)])
+    grids = {k: sorted({int(N[i]) for i in np.flatnonzero(sim & shown) if _group_key(delta[i]) == k}) for k in keys}
+    drawn = _drawn_groups(ds, keys)
     cmap = plt.get_cmap("tab10")
     colour = {k: cmap(i % 10) for i, k in enumerate(keys)}
     fig, ax = plt.subplots(figsize=(6.0, 4.6), constrained_layout=True)
@@ -307,7 +331,8 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
     for k in keys:
         for knd, marker, face, name in (("simulation", "o", None, "IBM"), ("theory", "s", "none", "PA")):
             sel = ok & (kind == knd) & np.array([_group_key(d) == k for d in delta])
-            grid = f", N = {finest[k]}" if knd == "simulation" and finest[k] > 0 else ""
+            grid = (f", N = {'/'.join(map(str, grids[k]))}" if knd == "simulation" and grids[k] and grids[k][-1] > 0
+                    else "")
             # noisy runs (an ensemble's members) as small faded points beside the deterministic ones
             for hot in (False, True):
                 part = sel & ((kT > 0) == hot)
@@ -317,7 +342,7 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
                 ax.plot(S[part], y[part], marker=marker, ls="none", ms=4 if hot else 7, color=colour[k],
                         alpha=0.45 if hot else 1.0, mfc=colour[k] if face is None else "none",
                         label=f"{name}, $\\Delta$ = {k:g}{grid}{note}")
-    _draw_ensembles(ax, ds, measure, colour, finest)
+    _draw_ensembles(ax, ds, measure, colour, drawn)
     if "group" in ds.dims:
         gk = np.asarray(ds["group_kind"].values).astype(str)
         gd = np.asarray(ds["group_delta"].values, dtype=float)
@@ -329,7 +354,7 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
             hi = float(ds[f"{measure}_ci_high"].values[i])
             c = float(ds[f"{measure}_prefactor"].values[i])
             k = _group_key(gd[i])
-            if gk[i] == "simulation" and "group_N" in ds.variables and int(ds["group_N"].values[i]) != finest[k]:
+            if gk[i] == "simulation" and "group_N" in ds.variables and i not in drawn:
                 continue
             sel = ok & (kind == gk[i]) & np.array([_group_key(d) == k for d in delta])
             if sel.sum() < 2:
