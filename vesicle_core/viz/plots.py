@@ -291,6 +291,22 @@ def _draw_ensembles(ax, ds, measure, colour, drawn):
         first = False
 
 
+def _finest_cases(ds, kind, delta, S, keys):
+    """Which cases Fig. 4 shows (the PA's, and each (Delta, S)'s simulations at its finest (N, vertices)) and, per
+    Delta, the grids N of the simulations shown."""
+    n = len(S)
+    N = np.asarray(ds["N"].values, dtype=int) if "N" in ds.variables else np.zeros(n, dtype=int)
+    nv = np.asarray(ds["vertices"].values, dtype=int) if "vertices" in ds.variables else np.zeros(n, dtype=int)
+    sim = kind == "simulation"
+    finest = {}
+    for i in np.flatnonzero(sim):
+        key = (_group_key(delta[i]), S[i])
+        finest[key] = max(finest.get(key, (0, 0)), (int(N[i]), int(nv[i])))
+    shown = ~sim | np.array([(int(N[i]), int(nv[i])) == finest.get((_group_key(delta[i]), S[i])) for i in range(n)])
+    grids = {k: sorted({int(N[i]) for i in np.flatnonzero(sim & shown) if _group_key(delta[i]) == k}) for k in keys}
+    return shown, grids
+
+
 def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guide=True):
     """Fig. 4: l_* (``measure`` = "l_star", eq. 31, or "l_peak", the dominant mode) against S on log-log axes.
 
@@ -313,16 +329,8 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
     S = np.asarray(ds["S"].values, dtype=float)
     y = np.asarray(ds[measure].values, dtype=float)
     keys = sorted({_group_key(d) for d in delta})
-    N = np.asarray(ds["N"].values, dtype=int) if "N" in ds.variables else np.zeros(len(S), dtype=int)
     kT = np.asarray(ds["kT"].values, dtype=float) if "kT" in ds.variables else np.zeros(len(S))
-    nv = np.asarray(ds["vertices"].values, dtype=int) if "vertices" in ds.variables else np.zeros(len(S), dtype=int)
-    sim = kind == "simulation"
-    finest = {}  # (Delta, S) -> its finest (N, vertices) among the simulations
-    for i in np.flatnonzero(sim):
-        key = (_group_key(delta[i]), S[i])
-        finest[key] = max(finest.get(key, (0, 0)), (int(N[i]), int(nv[i])))
-    shown = ~sim | np.array([(int(N[i]), int(nv[i])) == finest.get((_group_key(d), S[i])) for i, d in enumerate(delta)])
-    grids = {k: sorted({int(N[i]) for i in np.flatnonzero(sim & shown) if _group_key(delta[i]) == k}) for k in keys}
+    shown, grids = _finest_cases(ds, kind, delta, S, keys)
     drawn = _drawn_groups(ds, keys)
     cmap = plt.get_cmap("tab10")
     colour = {k: cmap(i % 10) for i, k in enumerate(keys)}
