@@ -83,7 +83,7 @@ def arnoldi(apply, v, max_iter=40, rtol=1e-3, min_iter=3):
     xp = array_module(v)
     basis = [v / float(xp.linalg.norm(v))]
     H = np.zeros((max_iter + 1, max_iter))
-    lam, vec, calm = 0.0, basis[0], 0
+    lam, coef, calm, j = 0.0, np.ones(1), 0, 0
     for j in range(max_iter):
         u = apply(basis[j])
         for _ in range(2):  # Gram-Schmidt twice: the basis stays orthogonal to rounding
@@ -95,13 +95,14 @@ def arnoldi(apply, v, max_iter=40, rtol=1e-3, min_iter=3):
         ritz, vecs = np.linalg.eig(H[: j + 1, : j + 1])
         k = int(np.argmax(np.abs(ritz)))
         new = float(abs(ritz[k]))
-        vec = sum(float(vecs[i, k].real) * basis[i] for i in range(j + 1))
+        coef = vecs[:, k].real
         calm = calm + 1 if abs(new - lam) < rtol * new else 0
         lam = new
         if (j + 1 >= min_iter and calm >= 2) or H[j + 1, j] <= 1e-12 * new:
-            return lam, vec / float(xp.linalg.norm(vec)), j + 1
+            break
         basis.append(u / H[j + 1, j])
-    return lam, vec / float(xp.linalg.norm(vec)), max_iter
+    vec = sum(float(c) * b for c, b in zip(coef, basis, strict=False))  # the Ritz vector, built once at the end
+    return lam, vec / float(xp.linalg.norm(vec)), j + 1
 
 
 def stiffness_product(solver: IBMSolver, X):
@@ -111,9 +112,11 @@ def stiffness_product(solver: IBMSolver, X):
     scale = 1e-7 * float(xp.abs(X).max())
     mem = solver.membrane
     pressure = mem.K_volume * (volume(X, mem.topo) - mem.ref.volume) / mem.ref.volume
+    # the forces are spread at X itself, not at the displaced shapes: one stencil for every product, valid until
+    # the coupler is prepared at other points (the integrator's step does that after each measurement)
+    solver.coupler.prepare(X)
 
     def apply(v):
-        solver.coupler.prepare(X)  # the forces are spread at X itself, not at the displaced shapes
         w = scale * v
         dF = solver.forces(X + w)[0] - solver.forces(X - w)[0]
         if pressure:
