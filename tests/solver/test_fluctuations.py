@@ -368,8 +368,11 @@ def test_drift_every_k_steps_is_the_rfd_weighted_by_k_on_those_steps_only():
 def test_lm_noise_is_the_mean_of_this_and_the_next_steps_euler_draws():
     _, _, st, _ = _setup()
     euler, lm = ThermalNoise(st, KT, seed=11), ThermalNoise(st, KT, seed=11, scheme="lm")
-    expected = 0.5 * (euler.velocity(DT, 4).copy() + euler.velocity(DT, 5).copy())
-    np.testing.assert_allclose(lm.velocity(DT, 4), expected, rtol=1e-12, atol=1e-14)
+    e = {n: euler.velocity(DT, n).copy() for n in (4, 5, 6, 8, 9)}
+    # consecutive steps reuse the kept draw of step n + 1; a gap (a resumed run) draws afresh: the same numbers
+    for n in (4, 5, 8):
+        np.testing.assert_allclose(lm.velocity(DT, n), 0.5 * (e[n] + e[n + 1]), rtol=1e-12, atol=1e-14)
+    assert lm.n_draws == 5  # steps 4, 5, 6, then 8, 9
     with pytest.raises(ConfigError, match="noise_scheme"):
         ThermalNoise(st, KT, scheme="midpoint")
 

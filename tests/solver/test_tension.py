@@ -160,15 +160,18 @@ def test_inextensible_run_holds_every_triangle(inext_run):
     assert ds.tension.values[-1] < ds.tension.sel(time=0.0, method="nearest")
 
 
-@pytest.mark.parametrize(("space", "kT", "ale"), [("triangle", 0.0, "none"), ("harmonic", 0.0, "none"),
-                                                 ("harmonic", 0.0, "shape"), ("harmonic", 0.0405, "none")])
-def test_inextensible_resume_is_identical(tmp_path, space, kT, ale):
+@pytest.mark.parametrize(("space", "kT", "ale", "precond"),
+                         [("triangle", 0.0, "none", "compliance"), ("harmonic", 0.0, "none", "compliance"),
+                          ("harmonic", 0.0, "shape", "compliance"), ("harmonic", 0.0405, "none", "compliance"),
+                          ("harmonic", 0.0405, "none", "secant")])
+def test_inextensible_resume_is_identical(tmp_path, space, kT, ale, precond):
     """A run stopped after 25 steps and resumed from its checkpoint (every 7 steps) gives the uninterrupted run's
     frames bit for bit. The harmonic tension checkpoints its measured diagonal rho_l and its age, and each
     measurement's draw is seeded by its step; the thermal noise and its drift draw from (noise_seed, step) only;
-    mesh_ale shape checkpoints the lipid area the triangles carry."""
+    mesh_ale shape checkpoints the lipid area the triangles carry; cg_precond secant its operator model and the last
+    step's modelled noise response."""
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    cfg = _run_cfg(checkpoint_every=7, tension_space=space, kT=kT, noise_seed=5, mesh_ale=ale)
+    cfg = _run_cfg(checkpoint_every=7, tension_space=space, kT=kT, noise_seed=5, mesh_ale=ale, cg_precond=precond)
     ref = xr.open_dataset(run(m, cfg, tmp_path / "a", progress=False)).load()
     # 25: past the bending limit's first re-measurement (step 20) and its checkpoint (21), so that the one at step
     # 40 starts from the checkpointed vector

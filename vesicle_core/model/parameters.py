@@ -309,25 +309,20 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         1e-2,
         lo_open=True,
     ),
-    Parameter(
-        "cg_maxiter",
-        200,
-        "int",
-        "inextensible: CG iterations before the run stops (NumericalInstability)",
-        "",
-        1,
-        100000,
-    ),
+    Parameter("cg_maxiter", 200, "int", "inextensible: CG iterations before the run stops (NumericalInstability)", "",
+              1, 100000),
     Parameter(
         "cg_precond",
-        "compliance",
+        "auto",
         "str",
         "inextensible: CG preconditioner. local adds the IBM's measured "
         "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
         "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 it halves the "
         "elongated vesicle's iterations (Delta ~ 1: 2.1x faster through the late stretch) but slows the "
-        "quasi-spherical one (no fewer warm-step iterations): compliance there",
-        choices=("compliance", "local"),
+        "quasi-spherical one (no fewer warm-step iterations): compliance there. secant (tension_space harmonic): "
+        "BFGS updates of the measured diagonal from every CG product (tension_secant.py; 2-3.6x fewer CG "
+        "iterations with noise). auto: secant for kT > 0 with the harmonic tension, compliance otherwise",
+        choices=("auto", "compliance", "local", "secant"),
     ),
     Parameter(
         "tension_space",

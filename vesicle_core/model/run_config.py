@@ -48,7 +48,7 @@ class RunConfig:
     fft_workers: int = 1
     cg_tol: float = 1.0e-5
     cg_maxiter: int = 200
-    cg_precond: str = "compliance"
+    cg_precond: str = "auto"
     tension_space: str = "triangle"
     tension_l_max: int | None = None
     mesh_ale: str = "none"
@@ -73,6 +73,9 @@ class RunConfig:
         if self.tension_space == "harmonic" and self.cg_precond == "local":
             raise ConfigError("tension_space 'harmonic' has its own preconditioner (the measured area rate per l); "
                               "cg_precond 'local' applies to tension_space 'triangle' only")
+        if self.tension_space != "harmonic" and self.cg_precond == "secant":
+            raise ConfigError("cg_precond 'secant' learns the harmonic tension's operator; it applies to "
+                              f"tension_space 'harmonic' only, got '{self.tension_space}'")
         if self.mesh_ale != "none" and self.tension_space != "harmonic":
             raise ConfigError(f"mesh_ale '{self.mesh_ale}' applies to tension_space 'harmonic' only (the triangle "
                               "tension holds every triangle's area itself)")
@@ -88,6 +91,13 @@ class RunConfig:
         if self.seed_spectrum != "mesh" and self.stationary_tol > 0:
             raise ConfigError("seed_spectrum 'thermal' needs a fixed stretch (stationary_tol = 0): the seed goes on "
                               "the shape before the frame at the reversal")
+
+    @property
+    def tension_preconditioner(self) -> str:
+        """cg_precond resolved: auto is secant for a noisy run with the harmonic tension, compliance otherwise."""
+        if self.cg_precond != "auto":
+            return self.cg_precond
+        return "secant" if self.kT > 0 and self.tension_space == "harmonic" else "compliance"
 
     @property
     def h(self) -> float:

@@ -118,6 +118,7 @@ class ThermalNoise:
         self.seed = _check_counter("seed", seed)
         self.dtype = np.dtype(self.backend.dtype)
         self._host = None  # host buffer of the white noise (reused)
+        self._next = None  # (step, white noise) drawn by the last lm call for the next step
         self.n_draws = 0
 
     def amplitude(self, dt):
@@ -158,10 +159,11 @@ class ThermalNoise:
         (z_step + z_step+1) / 2 (Leimkuhler & Matthews), whose increments sum to the same Brownian path."""
         if self.scheme == "euler":
             u = self.displacement(dt, step, out=out)
-        else:
-            z = self.white(step).copy()
-            z += self.white(step + 1)
-            z *= 0.5
+        else:  # step n + 1's draw is kept for the next call (half the host draws; the same numbers)
+            z = self._next[1] if self._next is not None and self._next[0] == step else self.white(step).copy()
+            z_next = self.white(step + 1).copy()
+            self._next = (step + 1, z_next)
+            z = 0.5 * (z + z_next)
             if self.backend.is_gpu:
                 z = self.backend.asarray(z, dtype=self.dtype)
             u = self.stokes.sqrt_velocity(z, self.amplitude(dt), out=out)

@@ -212,7 +212,8 @@ class Inextensible(Integrator):
 
             self.ale = ShapeALE(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
-                                     maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None)
+                                     maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None,
+                                     secant=cfg.tension_preconditioner == "secant")
 
     def _start(self, c):
         """The solve's start coefficients: c, with the prescribed uniform tension in l = 0 (tension_fixed)."""
@@ -292,16 +293,13 @@ class Inextensible(Integrator):
         if state.sigma is None:
             state.sigma = xp.zeros(nF)
         self.mobility.prepare(X)
-        # warm start of the CG: linear extrapolation in time of the last two tensions (steps vary in length)
-        if state.sigma_prev is None:
-            guess = state.sigma
-        else:
-            h_a, h_b = state.dt_steps
-            guess = state.sigma + (h_b / h_a) * (state.sigma - state.sigma_prev)
+        guess = self._warm_start(state)
         u_inf = background_velocity(X, rate) if cfg.chi > 0 else 0.0
+        u_noise = None
         if self.thermal is not None:  # noise and drift: known velocities the constraint projects, like the flow's
             self._restore_rho(state)
-            u_inf = u_inf + self.thermal(X, dt, state.step)
+            u_noise = self.thermal(X, dt, state.step)
+            u_inf = u_inf + u_noise
         # the area each triangle should have: the reference's, or the lipid area it carries (mesh_ale shape)
         ref = mem.ref.face_area if state.lipid_area is None else xp.asarray(state.lipid_area)
         if self.space is None:
@@ -309,8 +307,10 @@ class Inextensible(Integrator):
         else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
             ts = self._restore_rho(state)
             _, sigma, U = ts.solve(geo, F, u_inf, geo.area - ref, dt,
-                                   self._start(self.space.fit(self.solver.be.asnumpy(guess))), seed=state.step)
-            state.tension_rho, state.tension_rho_age = ts.rho, ts._uses
+                                   self._start(self.space.fit(self.solver.be.asnumpy(guess))), seed=state.step,
+                                   unpredicted=u_noise, noise_c=state.tension_noise)
+            state.tension_rho, state.tension_rho_age, state.tension_noise = ts.rho, ts._uses, ts.noise_c
+            state.tension_secant = None if ts.secant is None else ts.secant.R
         state.sigma_prev = state.sigma
         state.sigma = sigma
         state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
@@ -328,11 +328,22 @@ class Inextensible(Integrator):
             state.lipid_area = self.ale.carry(ref_host, be.asnumpy(X + U * dt), be.asnumpy(w), self.tension.free)
         return U * dt + w
 
+    def _warm_start(self, state):
+        """The CG's start tension: linear extrapolation in time of the last two (steps vary in length). With noise,
+        the last one: the independent noise responses in the two would add up (start residual 9e-3 against 5e-3
+        without it, 642 vertices at N = 32); with the secant model it loses its own noise response in the solve."""
+        if state.sigma_prev is None or self.thermal is not None:
+            return state.sigma
+        h_a, h_b = state.dt_steps
+        return state.sigma + (h_b / h_a) * (state.sigma - state.sigma_prev)
+
     def _restore_rho(self, state):
         """The harmonic solver, with its rho_l measurement of the first call when the run was resumed."""
         ts = self.tension
         if self.space is not None and ts.rho is None and state.tension_rho is not None:
             ts.rho, ts._uses = np.asarray(state.tension_rho, dtype=float), int(state.tension_rho_age)
+            if ts.secant is not None and state.tension_secant is not None:
+                ts.secant.R = np.array(state.tension_secant, dtype=float)
         return ts
 
     def face_tension(self, state, geo):

@@ -150,7 +150,7 @@ class HarmonicTensionSolver:
     returns the per-triangle tension B c and the velocity; ``last`` is a SolveInfo."""
 
     def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=RHO_REFRESH,
-                 stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0, hold_area=True):
+                 stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0, hold_area=True, secant=False):
         if not Lambda > 0:
             raise ConfigError(f"Lambda (area-stretch modulus) must be > 0 for the tension solve, got {Lambda!r}")
         self.mobility = mobility
@@ -175,6 +175,10 @@ class HarmonicTensionSolver:
         # value the caller passes in c0, so the total area is free and the uniform tension is prescribed
         self.hold_area = bool(hold_area)
         self.free = np.ones(space.K, dtype=bool) if self.hold_area else space.l > 0
+        # secant: the diagonal in l is the start of a BFGS model of the operator fed by every product (tension_secant)
+        from .tension_secant import SecantPreconditioner
+
+        self.secant = SecantPreconditioner(space.G, self.Lambda, self.free) if secant else None
 
     # ------------------------------------------------------------------ operator and preconditioner
     def _xp_faces(self, c):
@@ -183,7 +187,10 @@ class HarmonicTensionSolver:
     def apply_rate(self, c, geo):
         """(B^T D M D^T B c, M D^T B c): the area rate per unit time of a tension c and its velocity."""
         q = self.mobility.apply(face_DT(self._xp_faces(c), geo, self.topo))
-        return self.space.test(to_numpy(face_D(q, geo, self.topo))), q
+        rate = self.space.test(to_numpy(face_D(q, geo, self.topo)))
+        if self.secant is not None:
+            self.secant.record(c, rate)
+        return rate, q
 
     def operator(self, c, geo, dt):
         """(A c, M D^T B c) with A = dt B^T D M D^T B + G / Lambda."""
@@ -222,8 +229,12 @@ class HarmonicTensionSolver:
         # a mode no flow can change (rho <= 0 only by round-off; the sphere's l = 0) is held by the compliance
         self.rho = np.maximum(rho, 0.0)
         self._uses = 0
+        if self.secant is not None and not self.secant.ready:
+            self.secant.start(self.rho, sp.l)
 
     def precondition(self, r, dt):
+        if self.secant is not None and self.secant.ready:
+            return self.secant(r, dt)
         s = 1.0 / np.sqrt(dt * self.rho[self.space.l] + 1.0 / self.Lambda)
         return s * self.space.G_solve(s * r)
 
@@ -232,16 +243,24 @@ class HarmonicTensionSolver:
         return math.sqrt(max(float(r @ self.space.G_solve(r)), 0.0) / self.area)
 
     # ------------------------------------------------------------------ the solve
-    def solve(self, geo, F, u_inf, area_error, dt, c0, seed=None, warm=True):
+    def solve(self, geo, F, u_inf, area_error, dt, c0, seed=None, warm=True, unpredicted=None, noise_c=None):
         """Coefficients c, per-triangle tension B c and velocity U (V, 3) of one step; the mobility must be prepared
         at geo's positions. Raises NumericalInstability when PCG does not converge. ``warm``: c0 is a prediction of
         the answer (a step's solve), so that many iterations mean a stale rho_l; the thermal drift's solves from
-        c0 = 0 pass False."""
+        c0 = 0 pass False. ``unpredicted``: the part of u_inf that c0 does not foresee (a thermal step's noise); with
+        the secant model, c0 (the last step's tension) loses that step's noise response ``noise_c`` and gains the
+        model's response to this step's noise and area error, free of Stokes solves (kept in ``self.noise_c``)."""
         sp = self.space
-        if self.rho is None or self._uses >= self.refresh:
+        secant = self.secant is not None and self.secant.ready
+        if self.rho is None or (self._uses >= self.refresh and not secant):  # the model tracks the shape itself
             self.measure_rho(geo, seed)
         self._uses += 1
         c = np.array(c0, dtype=float, copy=True)
+        self.noise_c = None
+        if unpredicted is not None and secant:
+            c -= 0.0 if noise_c is None else np.asarray(noise_c, dtype=float)
+            self.noise_c = self.secant(sp.test(to_numpy(dt * face_D(unpredicted, geo, self.topo) + area_error)), dt)
+            c += self.noise_c
         U = self.mobility.apply(F - face_DT(self._xp_faces(c), geo, self.topo)) + u_inf
         r = sp.test(to_numpy(dt * face_D(U, geo, self.topo) + area_error)) - sp.G @ c / self.Lambda
         operator, precondition = (lambda p: self.operator(p, geo, dt)), (lambda r: self.precondition(r, dt))
@@ -262,6 +281,8 @@ class HarmonicTensionSolver:
         c, U, it, res, res0 = pcg(c, U, r, operator, precondition, lambda a, b: float(a @ b), self.strain_rms,
                                   self.tol, self.maxiter)
         self.last = SolveInfo(it, res, res0)
+        if self.secant is not None:
+            self.secant.update()
         if warm and it >= self.stale and self._uses >= STALE_GAP:
             # the preconditioner no longer fits the shape: re-measure at the next call (not again within STALE_GAP
             # solves, where a fresh measurement did not help: l_t near the resolvable l needs 4-22 iterations anyway)

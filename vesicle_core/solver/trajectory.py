@@ -65,6 +65,8 @@ class State:
     dt_bending: float = 0.0  # inextensible: the bending limit re-measured during the run (tau; 0: the start's)
     bending_mode: object = None  # its stiffest mode (Arnoldi), (V, 3): the next measurement's start
     lipid_area: object = None  # mesh_ale shape: the lipid area each triangle carries, (F,) on the host (None: A0)
+    tension_secant: object = None  # cg_precond secant: the BFGS model of the harmonic tension's rate operator, (K, K)
+    tension_noise: object = None  # cg_precond secant, thermal: the last step's modelled noise response, (K,)
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -82,6 +84,10 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
         data["lipid_area"] = (("n_face",), np.asarray(state.lipid_area, dtype=float))
     if state.tension_rho is not None:
         data["tension_rho"] = (("n_l",), np.asarray(state.tension_rho, dtype=float))
+    if state.tension_secant is not None:
+        data["tension_secant"] = (("n_coef", "n_coef_"), np.asarray(state.tension_secant, dtype=float))
+    if state.tension_noise is not None:
+        data["tension_noise"] = (("n_coef",), np.asarray(state.tension_noise, dtype=float))
     if state.cg_iterations:
         data["cg_iterations"] = (("n_step",), np.asarray(state.cg_iterations, dtype=np.int32))
     if u_hat is not None:
@@ -125,6 +131,7 @@ def load_checkpoint(path: Path, xp):
         strain_err=float(a.get("strain_err", 0.0)), dt_bending=float(a.get("dt_bending", 0.0)),
         bending_mode=xp.asarray(ds["bending_mode"].values) if "bending_mode" in ds else None,
         lipid_area=ds["lipid_area"].values.copy() if "lipid_area" in ds else None,
+        **{k: ds[k].values.copy() for k in ("tension_secant", "tension_noise") if k in ds},
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
