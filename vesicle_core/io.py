@@ -55,3 +55,34 @@ def safe_load_unique(stream):
 
     _UniqueKeys.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
     return yaml.load(stream, Loader=_UniqueKeys)
+
+
+#: the lock file of a run directory (held while ``vesicle run`` writes it)
+RUN_LOCK = "run.lock"
+
+
+def hold_run_lock(outdir):
+    """Take an exclusive lock on ``outdir`` for this process, or raise ConfigError when another process holds it: two
+    runs writing one directory interleave their frames and checkpoints (seen when a chain of runs was started twice).
+    Returns the open lock file; closing it (or the process ending, however it ends) releases the lock. The file
+    stays behind and is harmless. Where the platform has no fcntl (Windows) nothing is locked."""
+    from .errors import ConfigError
+
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return open(os.devnull, "w")
+    f = open(Path(outdir) / RUN_LOCK, "a+")
+    try:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.seek(0)
+        holder = f.read().strip() or "?"
+        f.close()
+        raise ConfigError(f"{outdir} is being written by another vesicle run (pid {holder}); wait for it to end, or "
+                          "stop it, before running into the same directory") from None
+    f.seek(0)
+    f.truncate()
+    f.write(str(os.getpid()))
+    f.flush()
+    return f

@@ -11,6 +11,7 @@ import xarray as xr
 
 from vesicle_core.errors import ConfigError, NumericalInstability
 from vesicle_core.geometry import mesh as M
+from vesicle_core.io import hold_run_lock
 from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.mobility import IBMSolver
 from vesicle_core.solver.simulate import run
@@ -77,6 +78,23 @@ def test_reversal_turns_tension_negative(stretch_run):
     assert after.tension.values.min() < 0
     delta = stretch_run.attrs["delta"]
     assert stretch_run.attrs["S"] == pytest.approx(16 * math.sqrt(6 * math.pi) * 20 / (11 * math.sqrt(5 * delta)))
+
+
+def test_a_second_run_into_a_directory_being_written_is_refused(tmp_path):
+    """Two runs writing one directory would interleave frames and checkpoints: the second stops at once, touching
+    nothing, and the directory is free again when the first ends (here: when its lock is released)."""
+    m = _mesh(level=2)
+    cfg = RunConfig(chi=10.0, N=16, stretch=0.02, t_end=0.02, output_every=0.02, Lambda=1e4, dt=2e-4)
+    (tmp_path / CHECKPOINT).write_text("another run's")
+    with hold_run_lock(tmp_path):
+        with pytest.raises(ConfigError, match=f"{tmp_path} is being written by another vesicle run .pid {os.getpid()}"):
+            run(m, cfg, tmp_path, progress=False)
+        assert (tmp_path / CHECKPOINT).read_text() == "another run's"
+        assert not (tmp_path / PARTIAL).exists() and not (tmp_path / TRAJECTORY).exists()
+    (tmp_path / CHECKPOINT).unlink()
+    assert run(m, cfg, tmp_path, progress=False).exists()
+    with hold_run_lock(tmp_path):  # and the finished run let go of it
+        pass
 
 
 def test_resume_is_bit_identical(tmp_path):

@@ -19,14 +19,12 @@ Time step: :mod:`vesicle_core.solver.step_size`.
 Robustness. Output frames are appended to ``trajectory.partial.nc``; it becomes ``trajectory.nc``
 only when the run is complete. ``checkpoint.nc`` is rewritten atomically every ``checkpoint_every``
 steps, after every ``parameters.CHECKPOINT_WALL_S`` of wall time and on SIGINT/SIGTERM; rerunning the same
-command resumes from it and ends bit-identical to an uninterrupted run.
-NaN/Inf, a blow-up or an area/volume drift beyond ``max_drift`` stops the run with
-NumericalInstability, a diagnostic file ``failure.nc`` and no complete-looking trajectory.
+command resumes from it and ends bit-identical to an uninterrupted run. NaN/Inf, a blow-up or an area/volume drift
+beyond ``max_drift`` stops the run with NumericalInstability, a diagnostic file ``failure.nc`` and no complete-looking
+trajectory. A second run into a directory another one is writing is refused (``run.lock``, io.hold_run_lock).
 
-Layout: the run configuration is in :mod:`vesicle_core.model.run_config`, the coupled operator (:class:`IBMSolver`) in
-:mod:`vesicle_core.solver.mobility`, the run directory's files (State, checkpoint, trajectory) in
-:mod:`vesicle_core.solver.trajectory`, the schemes in :mod:`vesicle_core.solver.integrators`. The step estimates are in
-:mod:`vesicle_core.solver.step_size`. This module holds the driver :func:`run`.
+Layout: configuration in model.run_config; in this package the coupled operator (IBMSolver) in mobility, the run
+directory's files in trajectory, the schemes in integrators, the steps in step_size; here the driver :func:`run`.
 """
 
 from __future__ import annotations
@@ -42,6 +40,7 @@ import numpy as np
 
 from ..errors import NumericalInstability
 from ..geometry.mesh import vertices_for_edge
+from ..io import hold_run_lock
 from ..model.parameters import CHECKPOINT_WALL_S
 from ..model.run_config import RunConfig
 from . import membrane as B
@@ -469,12 +468,15 @@ def _catch_stop_signals(r: _Run) -> dict:
 
 
 def run(mesh, cfg: RunConfig, outdir, progress: bool = True, stop_after_steps: int | None = None) -> Path:
-    """Run (or resume) one case; returns the path of the complete trajectory.
-
-    ``stop_after_steps`` ends the process early as if interrupted (used by the resume test).
-    """
+    """Run (or resume) one case; returns the path of the complete trajectory, or None when ``stop_after_steps``
+    ended it early as if interrupted (the resume test)."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
+    with hold_run_lock(outdir):  # before anything in the directory is touched; released however the run ends
+        return _run_locked(mesh, cfg, outdir, progress, stop_after_steps)
+
+
+def _run_locked(mesh, cfg, outdir, progress, stop_after_steps):
     (outdir / FAILURE).unlink(missing_ok=True)
     mesh.check()
     r = _Run(mesh, cfg, outdir, progress)
