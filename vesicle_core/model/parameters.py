@@ -427,7 +427,8 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
               "for linear modes) (fluctuations.py)", choices=("euler", "lm")),
     Parameter("noise_drift_every", 1, "int", "thermal noise: steps between the Ito drift's random finite differences "
               "(two constrained solves each), applied with that weight; 10 heats the shortest modes by 3-15% at "
-              "N = 32; 0: no drift (no measurable effect there, 2.4x fewer solves; docs/thermal.md)", "", 0, 1000),
+              "N = 32; 0: no drift (paired runs at N = 32, either coupling: spectrum and centroid D within 1.1%; 3x "
+              "fewer solves; docs/thermal.md)", "", 0, 1000),
     Parameter(
         "store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, node_uz)"
     ),
