@@ -134,6 +134,8 @@ def test_projected_noise_has_the_constrained_mobility_covariance(either_space):
     ({"noise_seed": 1.5}, "noise_seed must be an integer"),
     ({"noise_seed": -1}, r"noise_seed must lie in \[0, 2147483647\]"),
     ({"kT": 0.04, "scheme": "projection"}, "kT > 0 needs scheme 'inextensible'"),
+    ({"kT": 0.04, "scheme": "inextensible", "seed_spectrum": "thermal", "stationary_tol": 0.0},
+     "kT = 0.04 with seed_spectrum 'thermal'.*second thermal spectrum.*seed_spectrum: mesh"),
 ])
 def test_bad_thermal_input_names_the_field(kw, match):
     with pytest.raises(ConfigError, match=match):

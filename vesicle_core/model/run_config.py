@@ -88,6 +88,10 @@ class RunConfig:
         if self.kT > 0 and self.scheme != "inextensible":
             raise ConfigError(f"kT > 0 needs scheme 'inextensible' (the noise enters its tension solve); got scheme "
                               f"'{self.scheme}' (or set kT = 0)")
+        if self.kT > 0 and self.seed_spectrum != "mesh":
+            raise ConfigError(f"kT = {self.kT:g} with seed_spectrum '{self.seed_spectrum}': the noise keeps the "
+                              "membrane thermal throughout, and the PA's thermal seed at the reversal would add a "
+                              "second thermal spectrum on top; set seed_spectrum: mesh for noisy runs")
         if self.seed_spectrum != "mesh" and self.stationary_tol > 0:
             raise ConfigError("seed_spectrum 'thermal' needs a fixed stretch (stationary_tol = 0): the seed goes on "
                               "the shape before the frame at the reversal")
