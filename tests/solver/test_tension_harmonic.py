@@ -25,19 +25,6 @@ from vesicle_core.solver.tension_harmonic import (
 )
 
 
-@pytest.fixture(scope="module")
-def setup():
-    m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic")
-    s = IBMSolver(m.faces, m.vertices, cfg)
-    X = s.xp.asarray(m.vertices)
-    F, geo = s.forces(X)
-    mob = IBMMobility(s.coupler, s.stokes)
-    mob.prepare(X)
-    space = HarmonicSpace(m.vertices, m.faces, geo.area.copy(), 4)
-    return m, s, X, F, geo, mob, space
-
-
 def test_real_harmonics_are_orthonormal():
     """On a fine Gauss-Legendre x uniform grid the real Y_lm have the identity as Gram matrix."""
     x, wx = np.polynomial.legendre.leggauss(24)
@@ -425,18 +412,11 @@ def test_harmonic_l_star_does_not_move_with_the_mesh_at_a_fixed_grid(tmp_path):
     assert out[2562][1] == pytest.approx(out[642][1], abs=0.011)
 
 
-def test_rho_of_the_high_l_read_off_shared_probes_matches_one_solve_per_l():
+def test_rho_of_the_high_l_read_off_shared_probes_matches_one_solve_per_l(harmonic_setup):
     """measure_rho reads rho_l (l > EXACT_L) off one random vector over all of those l: on the quasi-spherical
     1:0.8:1 ellipsoid the blocks barely couple, so each l agrees with its own Rayleigh quotient (one Stokes solve per
     l) to 25% per draw and 10% over three draws: a preconditioner's accuracy, at 4 solves instead of 11."""
-    m = Mm.make_vesicle("quasiuniform", n_vertices=642, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=24, scheme="inextensible", tension_space="harmonic")
-    s = IBMSolver(m.faces, m.vertices, cfg)
-    X = s.xp.asarray(m.vertices)
-    _, geo = s.forces(X)
-    mob = IBMMobility(s.coupler, s.stokes)
-    mob.prepare(X)
-    space = HarmonicSpace(m.vertices, m.faces, geo.area.copy(), 10)
+    _, s, _, _, geo, mob, space = harmonic_setup(n_vertices=642, N=24, l_t=10)
     ts = HarmonicTensionSolver(mob, s.membrane.topo, space, 1e6)
     rng = np.random.default_rng(5)
     alone = []

@@ -4,10 +4,8 @@ import numpy as np
 import pytest
 
 from vesicle_core.errors import ConfigError
-from vesicle_core.geometry import mesh as Mm
 from vesicle_core.model.run_config import RunConfig
-from vesicle_core.solver.mobility import IBMMobility, IBMSolver
-from vesicle_core.solver.tension_harmonic import HarmonicSpace, HarmonicTensionSolver
+from vesicle_core.solver.tension_harmonic import HarmonicTensionSolver
 from vesicle_core.solver.tension_secant import SecantPreconditioner
 
 
@@ -75,23 +73,11 @@ def test_preconditioner_solves_the_free_block_and_leaves_the_fixed_coefficients_
     np.testing.assert_allclose(A[np.ix_(free, free)] @ z[free], r[free], rtol=1e-10)
 
 
-@pytest.fixture(scope="module")
-def ibm():
-    m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic")
-    s = IBMSolver(m.faces, m.vertices, cfg)
-    X = s.xp.asarray(m.vertices)
-    F, geo = s.forces(X)
-    mob = IBMMobility(s.coupler, s.stokes)
-    mob.prepare(X)
-    return s, geo, F, mob, HarmonicSpace(m.vertices, m.faces, geo.area.copy(), 4)
-
-
-def test_secant_solves_agree_with_the_diagonal_and_need_fewer_iterations_on_white_right_hand_sides(ibm):
+def test_secant_solves_agree_with_the_diagonal_and_need_fewer_iterations_on_white_right_hand_sides(setup):
     """A sequence of tension solves whose right-hand sides are new and white each time (a thermal step's): with the
     secant model the answers are the diagonal preconditioner's to the tolerance, and once the model has seen
     the operator the CG needs at most 2 iterations where the diagonal needs more."""
-    s, geo, F, mob, space = ibm
+    _, s, _, F, geo, mob, space = setup
     topo, dt, tol = s.membrane.topo, 2e-4, 1e-9
     rng = np.random.default_rng(4)
     solvers = {k: HarmonicTensionSolver(mob, topo, space, 1e6, tol=tol, maxiter=300, secant=k == "secant")
