@@ -175,10 +175,10 @@ class HarmonicTensionSolver:
         # value the caller passes in c0, so the total area is free and the uniform tension is prescribed
         self.hold_area = bool(hold_area)
         self.free = np.ones(space.K, dtype=bool) if self.hold_area else space.l > 0
-        # secant: the diagonal in l is the start of a BFGS model of the operator fed by every product (tension_secant)
-        from .tension_secant import SecantPreconditioner
+        from .tension_secant import SecantPreconditioner  # the diagonal in l starts a BFGS model fed by every product
 
         self.secant = SecantPreconditioner(space.G, self.Lambda, self.free) if secant else None
+        self.noise_c = None  # the last solve's modelled noise response (solve's ``unpredicted``)
 
     # ------------------------------------------------------------------ operator and preconditioner
     def _xp_faces(self, c):
