@@ -320,7 +320,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 it halves the "
         "elongated vesicle's iterations (Delta ~ 1: 2.1x faster through the late stretch) but slows the "
         "quasi-spherical one (no fewer warm-step iterations): compliance there. secant (tension_space harmonic): "
-        "BFGS updates of the measured diagonal from every CG product (tension_secant.py; 2-3.6x fewer CG "
+        "BFGS updates of the measured diagonal from every CG product (tension_secant.py; 1.8-3.6x fewer CG "
         "iterations with noise). auto: secant for kT > 0 with the harmonic tension, compliance otherwise",
         choices=("auto", "compliance", "local", "secant"),
     ),
