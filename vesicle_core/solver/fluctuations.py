@@ -118,7 +118,8 @@ class ThermalNoise:
         self.seed = _check_counter("seed", seed)
         self.dtype = np.dtype(self.backend.dtype)
         self._host = None  # host buffer of the white noise (reused)
-        self._next = None  # (step, white noise) drawn by the last lm call for the next step
+        self._pair = None  # lm: two host buffers, the first holding step _next_step's draw after a call
+        self._next_step = None
         self.n_draws = 0
 
     def amplitude(self, dt):
@@ -126,14 +127,16 @@ class ThermalNoise:
         dt = float(check_range("dt", dt, 0.0, None, lo_open=True))
         return float(np.sqrt(2.0 * self.kT * dt / self.grid.h**3))
 
-    def white(self, step, stream=0):
+    def white(self, step, stream=0, out=None):
         """z: independent N(0, 1) per node and component, (3, N, N, N) host array of the backend dtype, drawn by
-        :func:`noise_generator` (seed, step, stream). Overwritten by the next call."""
-        if self._host is None:
-            self._host = np.empty(self.grid.field_shape, dtype=self.dtype)
-        noise_generator(self.seed, step, stream).standard_normal(dtype=self.dtype, out=self._host)
+        :func:`noise_generator` (seed, step, stream) into ``out`` or a buffer that the next call overwrites."""
+        if out is None:
+            if self._host is None:
+                self._host = np.empty(self.grid.field_shape, dtype=self.dtype)
+            out = self._host
+        noise_generator(self.seed, step, stream).standard_normal(dtype=self.dtype, out=out)
         self.n_draws += 1
-        return self._host
+        return out
 
     def displacement(self, dt, step, out=None, stream=0):
         """Grid field (3, N, N, N) of the thermal displacement over dt at step ``step`` (backend array).
@@ -159,11 +162,16 @@ class ThermalNoise:
         (z_step + z_step+1) / 2 (Leimkuhler & Matthews), whose increments sum to the same Brownian path."""
         if self.scheme == "euler":
             u = self.displacement(dt, step, out=out)
-        else:  # step n + 1's draw is kept for the next call (half the host draws; the same numbers)
-            z = self._next[1] if self._next is not None and self._next[0] == step else self.white(step).copy()
-            z_next = self.white(step + 1).copy()
-            self._next = (step + 1, z_next)
-            z = 0.5 * (z + z_next)
+        else:  # step n + 1's draw is kept for the next call: half the host draws, the same numbers, no allocation
+            if self._pair is None:
+                self._pair = [np.empty(self.grid.field_shape, dtype=self.dtype) for _ in range(2)]
+            z, nxt = self._pair
+            if self._next_step != step:  # not drawn by the last call: the first step, or a resumed run's
+                self.white(step, out=z)
+            self.white(step + 1, out=nxt)
+            self._pair, self._next_step = [nxt, z], step + 1
+            z += nxt  # the mean, in the buffer the next call draws into
+            z *= 0.5
             if self.backend.is_gpu:
                 z = self.backend.asarray(z, dtype=self.dtype)
             u = self.stokes.sqrt_velocity(z, self.amplitude(dt), out=out)
