@@ -36,14 +36,15 @@ from bench_tension_space import analyse  # noqa: E402
 from vesicle_core.analysis.spectra import spectra_from_trajectory  # noqa: E402
 from vesicle_core.geometry import mesh as M  # noqa: E402
 from vesicle_core.model.run_config import RunConfig  # noqa: E402
+from vesicle_core.solver import mesh_ale as MA  # noqa: E402
 from vesicle_core.solver import tension_harmonic as TH  # noqa: E402
 from vesicle_core.solver.simulate import run  # noqa: E402
 
 
 def patch(a):
     """Set the solver's constants for this process: the ALE's LSQR iterations and the rho_l measurement."""
-    TH.ALE_ITERATIONS = a.ale_iterations
-    TH.AreaALE.__init__.__defaults__ = (1e-3, a.ale_iterations, a.ale_cap, 1.0)
+    MA.ALE_ITERATIONS = a.ale_iterations
+    MA.AreaALE.__init__.__defaults__ = (1e-3, a.ale_iterations, a.ale_cap, 1.0)
     if a.rho == "per-l":
         TH.EXACT_L = 10**6
     TH.HarmonicTensionSolver.__init__.__defaults__ = (1e-5, 200, a.rho_refresh, a.rho_stale, TH.RHO_PROBES, 0)
@@ -55,8 +56,8 @@ def main():
     ap.add_argument("--delta", type=float, default=0.116)
     ap.add_argument("--N", type=int, default=128)
     ap.add_argument("--chi", type=float, default=268.2)
-    ap.add_argument("--ale-iterations", type=int, default=TH.ALE_ITERATIONS)
-    ap.add_argument("--ale-cap", type=float, default=TH.AreaALE.__init__.__defaults__[2],
+    ap.add_argument("--ale-iterations", type=int, default=MA.ALE_ITERATIONS)
+    ap.add_argument("--ale-cap", type=float, default=MA.AreaALE.__init__.__defaults__[2],
                     help="largest tangential ALE step per step, in h")
     ap.add_argument("--rho", choices=("probe", "per-l"), default="probe")
     ap.add_argument("--rho-refresh", type=int, default=TH.RHO_REFRESH)

@@ -2,7 +2,7 @@
 
     python benchmarks/bench_mesh_ale.py TRAJ.nc [--frames 10] [--h H] [--iter-lim 100]
 
-For `mesh_ale` area and shape (tension_harmonic.AreaALE, ShapeALE) on consecutive stored frames k -> k + 1: the
+For `mesh_ale` area and shape (mesh_ale.AreaALE, ShapeALE) on consecutive stored frames k -> k + 1: the
 membrane's displacement dX = X_{k+1} - X_k (several steps: an upper bound on one step's), the area error of frame k
 against the reference (first) frame, and per ALE the median seconds per call, its LSQR iterations, the largest
 |w| / h, and the mesh quality (min, median) and triangle strain (against A0) of X_k + dX + w against X_k + dX.
@@ -20,7 +20,8 @@ import numpy as np
 import xarray as xr
 
 from vesicle_core.solver import membrane as Mb
-from vesicle_core.solver.tension_harmonic import AreaALE, HarmonicSpace, ShapeALE
+from vesicle_core.solver.mesh_ale import AreaALE, ShapeALE
+from vesicle_core.solver.tension_harmonic import HarmonicSpace
 
 
 def main(argv=None):

@@ -255,7 +255,7 @@ def test_shape_ale_keeps_the_triangles_shape_under_a_shear():
     """A differential rotation keeps the areas and shears the triangles: the area ALE then has nothing to correct and
     the worst triangle loses a quarter of its quality; mesh_ale: shape keeps the start's quality (min and median
     within 2%) and the areas (strain < 1e-3)."""
-    from vesicle_core.solver.tension_harmonic import AreaALE, ShapeALE
+    from vesicle_core.solver.mesh_ale import AreaALE, ShapeALE
 
     h = 0.1
 
@@ -272,7 +272,7 @@ def test_shape_ale_keeps_the_triangles_shape_under_a_shear():
 def test_shape_ale_leaves_the_reference_mesh_alone():
     """At the reference mesh the edge rows are at their minimum: no step, no area error -> no mesh motion (a
     Gauss-Newton step, not a steady drift)."""
-    from vesicle_core.solver.tension_harmonic import ShapeALE
+    from vesicle_core.solver.mesh_ale import ShapeALE
 
     m = Mm.make_vesicle("quasiuniform", n_vertices=642, axes=(1.0, 0.8, 1.0))
     topo = B.Topology(m.faces, m.n_vertices)
@@ -287,7 +287,7 @@ def test_area_ale_moves_the_mesh_at_a_bounded_speed():
     plus the step's largest membrane displacement: a short step moves the mesh proportionally less, in the same
     direction, and only tangentially."""
     from vesicle_core.geometry.surface import vertex_normals
-    from vesicle_core.solver.tension_harmonic import AreaALE
+    from vesicle_core.solver.mesh_ale import AreaALE
 
     m = Mm.make_vesicle("quasiuniform", n_vertices=642, axes=(1.0, 0.8, 1.0))
     topo = B.Topology(m.faces, m.n_vertices)
@@ -316,7 +316,7 @@ def test_shape_ale_carries_the_held_area_it_moves():
     """The lipid the triangles take along when the mesh moves: after carry(), the held projection of the area error,
     B^T (A - lipid) for l >= 1, is what it was before the mesh moved (the tension sees no strain the mesh made), and
     the total lipid is unchanged. Without the carry the mesh's move shows in that projection."""
-    from vesicle_core.solver.tension_harmonic import ShapeALE
+    from vesicle_core.solver.mesh_ale import ShapeALE
 
     m = Mm.make_vesicle("quasiuniform", n_vertices=642, axes=(1.0, 0.8, 1.0))
     topo = B.Topology(m.faces, m.n_vertices)

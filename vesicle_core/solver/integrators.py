@@ -204,11 +204,11 @@ class Inextensible(Integrator):
         self.space = HarmonicSpace(be.asnumpy(self.solver.xp.asarray(self.X0)), faces, be.asnumpy(mem.ref.face_area),
                                    cfg.tension_l_max)
         if cfg.mesh_ale == "area":
-            from .tension_harmonic import AreaALE
+            from .mesh_ale import AreaALE
 
             self.ale = AreaALE(self.space, cfg.h)
         elif cfg.mesh_ale == "shape":
-            from .tension_harmonic import ShapeALE
+            from .mesh_ale import ShapeALE
 
             self.ale = ShapeALE(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
