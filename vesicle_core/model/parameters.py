@@ -351,8 +351,9 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
         "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain; shape also "
-        "keeps the triangles' angles (a shear) and carries the lipid area the mesh moves",
-        choices=("none", "area", "shape"),
+        "keeps the triangles' angles (a shear) and carries the lipid area the mesh moves; quality adds shape's angle "
+        "rows only on triangles below 90% of their reference quality (full weight below 60%)",
+        choices=("none", "area", "shape", "quality"),
     ),
     Parameter("tension_fixed", None, "float", "tension_space harmonic: null = the total area is held; a number = the "
               "uniform (l = 0) tension is fixed at it and the total area is free (a fixed-tension ensemble for "

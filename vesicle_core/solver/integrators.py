@@ -211,6 +211,10 @@ class Inextensible(Integrator):
             from .mesh_ale import ShapeALE
 
             self.ale = ShapeALE(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
+        elif cfg.mesh_ale == "quality":
+            from .mesh_ale import QualityALE
+
+            self.ale = QualityALE(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
                                      maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None,
                                      secant=cfg.tension_preconditioner == "secant")

@@ -200,3 +200,56 @@ class ShapeALE(AreaALE):
         b = sp.B.T @ dA  # the held rows take it; the others (and l = 0: the total) get none
         b[~held | (sp.l == 0)] = 0.0
         return np.asarray(lipid_area, float) + sp.W * sp.faces(sp.G_solve(b))
+
+
+#: QualityALE's ramp, in a triangle's quality over its reference quality: the angle rows are off above Q_HI and at
+#: full weight below Q_LO
+Q_HI, Q_LO = 0.9, 0.6
+
+
+def _quality(X, faces):
+    """4 sqrt(3) A / (sum of the squared edges) per triangle (1: equilateral, 0: degenerate)."""
+    e = np.stack([X[faces[:, (c + 2) % 3]] - X[faces[:, (c + 1) % 3]] for c in range(3)])
+    A = 0.5 * np.linalg.norm(cross_rows(e[0], e[1]), axis=1)
+    return 4.0 * np.sqrt(3.0) * A / (e**2).sum(axis=(0, 2))
+
+
+class QualityALE(ShapeALE):
+    """AreaALE with ShapeALE's angle rows only where a triangle has lost its shape (``mesh_ale: quality``).
+
+    Neither ALE alone works on every rung of the elongated vesicle (docs/solver.md): the area rows alone let a
+    sheared patch degenerate into slivers, whose stiff bending modes collapse the step; the angle rows on every
+    triangle fight the benign global stretch of an elongating shape, and the lipid they carry lets the triangle
+    sizes drift by up to 100% against A0. Here triangle t's angle rows get the weight beta x ramp_t,
+
+        ramp_t = clip((Q_HI - q_t / q0_t) / (Q_HI - Q_LO), 0, 1),
+
+    q_t its quality now and q0_t on the reference mesh: zero while the triangle keeps 90% of its reference quality,
+    full below 60%. A mesh that keeps its shape is moved as AreaALE moves it."""
+
+    def __init__(self, space: HarmonicSpace, h, X0, faces, beta=0.1, q_hi=Q_HI, q_lo=Q_LO, **kw):
+        super().__init__(space, h, X0, faces, beta=beta, **kw)
+        if not 0.0 < q_lo < q_hi <= 1.0:
+            raise ValueError(f"QualityALE: need 0 < q_lo < q_hi <= 1, got q_lo = {q_lo}, q_hi = {q_hi}")
+        self.q_hi, self.q_lo = float(q_hi), float(q_lo)
+        self.q_ref = _quality(np.asarray(X0, dtype=float), self.faces)
+        self.full_weight = self.weight
+        self.active = 0  # triangles with angle rows at the last call
+        self.active_max = 0
+
+    def ramp(self, X):
+        """-> (F,) in [0, 1]: each triangle's share of the angle rows' weight."""
+        r = _quality(X, self.faces) / self.q_ref
+        return np.clip((self.q_hi - r) / (self.q_hi - self.q_lo), 0.0, 1.0)
+
+    def _extra_rows(self, X, dX, T):
+        ramp = self.ramp(X)
+        self.active = int(np.count_nonzero(ramp))
+        self.active_max = max(self.active_max, self.active)
+        if not self.active:
+            return ()
+        self.weight = self.full_weight * ramp
+        try:
+            return super()._extra_rows(X, dX, T)
+        finally:
+            self.weight = self.full_weight
