@@ -2,11 +2,11 @@
 
     python benchmarks/bench_mesh_ale.py TRAJ.nc [--frames 10] [--h H] [--iter-lim 100]
 
-For `mesh_ale` area and shape (mesh_ale.AreaALE, ShapeALE) on consecutive stored frames k -> k + 1: the
-membrane's displacement dX = X_{k+1} - X_k (several steps: an upper bound on one step's), the area error of frame k
-against the reference (first) frame, and per ALE the median seconds per call, its LSQR iterations, the largest
-|w| / h, and the mesh quality (min, median) and triangle strain (against A0) of X_k + dX + w against X_k + dX.
-Report ratios of the two ALEs measured in one run: timings here are noisy.
+For `mesh_ale` area, shape and quality (mesh_ale.AreaALE, ShapeALE, QualityALE) on consecutive stored frames
+k -> k + 1: the membrane's displacement dX = X_{k+1} - X_k (several steps: an upper bound on one step's), the area
+error of frame k against the reference (first) frame, and per ALE the median seconds per call, its LSQR
+iterations, the largest |w| / h, and the mesh quality (min, median) and triangle strain (against A0) of
+X_k + dX + w against X_k + dX. Report ratios of the ALEs measured in one run: timings here are noisy.
 """
 
 import os
@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from vesicle_core.solver import membrane as Mb
-from vesicle_core.solver.mesh_ale import AreaALE, ShapeALE
+from vesicle_core.solver.mesh_ale import AreaALE, QualityALE, ShapeALE
 from vesicle_core.solver.tension_harmonic import HarmonicSpace
 
 
@@ -41,8 +41,9 @@ def main(argv=None):
     space = HarmonicSpace(X[0], faces, A0, l_max)
     rev = int(np.argmax(ds.flow_sign.values < 0))
     ks = range(rev, min(rev + a.frames, X.shape[0] - 1))
-    ales = {"area": AreaALE(space, h, iter_lim=a.iter_lim), "shape": ShapeALE(space, h, X[0], faces,
-                                                                                iter_lim=a.iter_lim)}
+    ales = {"area": AreaALE(space, h, iter_lim=a.iter_lim),
+            "shape": ShapeALE(space, h, X[0], faces, iter_lim=a.iter_lim),
+            "quality": QualityALE(space, h, X[0], faces, iter_lim=a.iter_lim)}
     print(f"{a.trajectory}: {X.shape[1]} vertices, l_t = {space.l_max}, h = {h:.4g}, frames {ks.start}..{ks.stop}")
     out = {}
     for name, ale in ales.items():
@@ -61,10 +62,11 @@ def main(argv=None):
             qmed.append(np.median(q))
             strain.append(np.abs(g1.area / A0 - 1).max())
         out[name] = np.median(secs)
-        print(f"  {name:5s}: {np.median(secs) * 1e3:7.1f} ms/call, LSQR {ale.iterations / ale.calls:.0f} it, "
+        print(f"  {name:7s}: {np.median(secs) * 1e3:7.1f} ms/call, LSQR {ale.iterations / ale.calls:.0f} it, "
               f"max |w|/h {np.max(wmax):.3g}, quality min {np.min(qmin):.3f} median {np.median(qmed):.3f}, "
               f"triangle strain max {np.max(strain):.3g}")
-    print(f"  shape / area time per call: {out['shape'] / out['area']:.2f}")
+    r = {k: out[k] / out["area"] for k in ("shape", "quality")}
+    print(f"  time per call over area's: shape {r['shape']:.2f}, quality {r['quality']:.2f}")
 
 
 if __name__ == "__main__":
