@@ -236,8 +236,8 @@ def test_paper_config_plans(tmp_path):
 
 
 def test_paper_cpu_config_plans_on_top_of_the_default(tmp_path):
-    """config/paper_cpu.yaml only re-sweeps: the paper's seven runs with config.yaml's discretisation (the elongated
-    two with mesh_ale shape)."""
+    """config/paper_cpu.yaml only re-sweeps: the paper's seven runs with config.yaml's discretisation, its ALE
+    (mesh_ale quality) for the elongated two as well."""
     wd = workflow_copy(tmp_path)
     r = snakemake(wd, "-n", "-p", "--configfile", "config/paper_cpu.yaml")
     assert r.returncode == 0, r.stderr + r.stdout
@@ -245,8 +245,7 @@ def test_paper_cpu_config_plans_on_top_of_the_default(tmp_path):
     assert sims == sorted([f"D0.116_S{S}_N128_Q9512" for S in ("227", "553", "1106.5", "2224", "4448")]
                           + ["D0.997_S237_N128_Q9512", "D0.997_S947_N128_Q9512"])
     assert "\ncoupling: sharp\n" in r.stdout and "\nkernel: bao6\n" in r.stdout
-    # the two elongated runs keep their triangles' shape; the five others run config.yaml's ALE
-    assert r.stdout.count("\nmesh_ale: shape\n") == 2 and r.stdout.count("\nmesh_ale: area\n") == 5
+    assert r.stdout.count("\nmesh_ale: quality\n") == 7
 
 
 def test_paper_converged_config_runs_each_point_at_its_own_resolution(tmp_path):
@@ -261,7 +260,7 @@ def test_paper_converged_config_runs_each_point_at_its_own_resolution(tmp_path):
                                   + ["D0.116_S1106.5_N192_Q21398", "D0.116_S4448_N192_Q21398",
                                      "D0.997_S237_N128_Q9512", "D0.997_S947_N128_Q9512"])
     assert all(j.get("priority", 0) == (192 if "_N192_" in c else 128) for c, j in sims.items())
-    assert r.stdout.count("\nmesh_ale: shape\n") == 2 and r.stdout.count("\nmesh_ale: area\n") == 5
+    assert r.stdout.count("\nmesh_ale: shape\n") == 2 and r.stdout.count("\nmesh_ale: quality\n") == 5
     assert sum(j["rule"] == "theory" for j in jobs) == 14 + 7  # the PA points of Fig. 4, and one per run
 
 

@@ -84,7 +84,7 @@ def test_runconfig_checks_and_derives():
         RunConfig(dt="adaptive")
     with pytest.raises(ConfigError, match="inextensible"):
         RunConfig(scheme="inextensible", Re=1e-3)
-    for ale in ("area", "shape"):  # the triangle tension holds every triangle itself: no mesh motion for it
+    for ale in ("area", "shape", "quality"):  # the triangle tension holds every triangle itself: no mesh motion for it
         with pytest.raises(ConfigError, match=f"mesh_ale '{ale}' applies to tension_space 'harmonic'"):
             RunConfig(scheme="inextensible", tension_space="triangle", mesh_ale=ale)
     with pytest.raises(ConfigError, match="mesh_ale"):
