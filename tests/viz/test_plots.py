@@ -304,3 +304,28 @@ def test_an_ensemble_is_fitted_as_one_group_with_its_spread_per_S(tmp_path, monk
     plots.plot_lstar(fit, tmp_path / "l.png", guide=False)
     labels = figs[0].axes[0].get_legend_handles_labels()[1]
     assert any("ensemble mean +- sd (4 seeds)" in x for x in labels)
+
+
+def test_an_ensemble_at_one_S_gets_its_spread_and_no_exponent(tmp_path, monkeypatch):
+    """Eight seeds and the deterministic run at one S (a Kantsler-style ensemble): every group's exponent is NaN
+    (there is no S dependence to fit; `vesicle fit` used to stop on 'all x values are equal', and with it the
+    workflow's catalog), the point carries the mean and sd over the seeds, and Fig. 4 spans S/2..2S around the
+    points instead of a log axis of zero width."""
+    from vesicle_core.analysis.sweep_fits import sweep_fit_dataset
+
+    dss, v = [], []
+    for seed in range(8):
+        ds = spectra_like(S=947.0, delta=0.997, kind="spectra", seed=seed, maps=False)
+        v.append(16.8 * (1 + 0.02 * (seed - 3.5)))
+        ds["l_star"] = ((), v[-1])
+        ds.attrs.update(case_id=f"n{seed}", kT=0.0405, noise_seed=seed)
+        dss.append(ds)
+    dss.append(spectra_like(S=947.0, delta=0.997, kind="spectra", maps=False))
+    fit = sweep_fit_dataset(dss)
+    assert np.isnan(fit.l_star_exponent.values).all() and np.isnan(fit.l_peak_exponent.values).all()
+    p = int(np.flatnonzero(fit.point_n_seeds.values == 8)[0])
+    assert float(fit.point_l_star_sd[p]) == pytest.approx(np.std(v, ddof=1))
+    figs = []
+    monkeypatch.setattr(plots, "save_figure", lambda fig, outputs, dpi=150: figs.append(fig))
+    plots.plot_lstar(fit, tmp_path / "l.png")
+    assert figs[0].axes[0].get_xlim() == pytest.approx((473.5, 1894.0))

@@ -79,7 +79,8 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
 
     ``datasets`` are spectra (simulation) or theory (PA) Datasets with scalars ``l_star`` (eq. 31), ``l_peak``
     (dominant mode at t_*), ``t_star``, the series ``sigma(time)`` and attrs ``delta`` and ``S``. A group with
-    fewer than ``min_points`` cases, or a case whose tension has no clean stage 2, gets NaN and a ``note``.
+    fewer than ``min_points`` cases or a single S (an ensemble at one flow strength) gets a NaN exponent; a case
+    whose tension has no clean stage 2 gets NaN and a ``note``.
     Returns a Dataset with a ``case`` dimension (per-file values), a ``group`` dimension (per-sweep fits: one
     kind, Delta, N, vertex count and kT; where a simulated Delta was run at several resolutions, one more group with
     N = vertices = FINEST (-1) takes each S at its finest rung) and a ``point`` dimension (per group and S: mean and
@@ -134,9 +135,11 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
         for name in ("l_star", "l_peak"):
             pts = [(r["S"], r[name]) for r in sel if np.isfinite(r[name]) and r[name] > 0]
             fit = None
+            # an ensemble at one S (every seed a point, one x) has no exponent: NaN, as a group too small
             if len(pts) >= min_points:
                 x, y = map(np.asarray, zip(*pts, strict=True))
-                fit = fit_power_law(x, y, confidence)
+                if np.ptp(np.log(x)) > 1e-9:
+                    fit = fit_power_law(x, y, confidence)
             for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
                 gdata[f"{name}_{k}"].append(getattr(fit, k) if fit is not None else math.nan)
     group = {k: ("group", np.array(v)) for k, v in gdata.items()}

@@ -379,6 +379,8 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
         ax.plot(xs, y0 * (xs / x0) ** (1.0 / 3.0), color="0.5", ls=":", lw=1.5, label=r"$S^{1/3}$ guide")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    if ok.any() and np.ptp(np.log(S[ok])) < 1e-9:  # one S (an ensemble): a log axis of zero width shows nothing
+        ax.set_xlim(S[ok][0] / 2.0, S[ok][0] * 2.0)
     ax.set_xlabel("flow strength S")
     ax.set_ylabel(r"$l_*$ (eq. 31)" if measure == "l_star" else r"dominant mode $l$ at $t_*$")
     ax.set_title(r"characteristic wrinkle mode against flow strength", fontsize=10)
