@@ -74,6 +74,34 @@ def _ensemble_points(groups: dict) -> dict:
     return {k: ("point", np.array(v)) for k, v in out.items()}
 
 
+def _group_fits(groups: dict, confidence: float, min_points: int) -> dict:
+    """Per group: its key's fields, its size and the power laws of l_* and l_peak in S (NaN where it has fewer than
+    ``min_points`` points or a single S)."""
+    gdata = {k: [] for k in ("group_kind", "group_delta", "group_N", "group_vertices", "group_kT", "n_cases")}
+    for name in ("l_star", "l_peak"):
+        for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
+            gdata[f"{name}_{k}"] = []
+    for key, sel in groups.items():
+        kind, delta, N, nv, kT = key
+        gdata["group_kind"].append(kind)
+        gdata["group_delta"].append(delta)
+        gdata["group_N"].append(N)
+        gdata["group_vertices"].append(nv)
+        gdata["group_kT"].append(kT)
+        gdata["n_cases"].append(len(sel))
+        for name in ("l_star", "l_peak"):
+            pts = [(r["S"], r[name]) for r in sel if np.isfinite(r[name]) and r[name] > 0]
+            fit = None
+            # an ensemble at one S (every seed a point, one x) has no exponent: NaN, as a group too small
+            if len(pts) >= min_points:
+                x, y = map(np.asarray, zip(*pts, strict=True))
+                if np.ptp(np.log(x)) > 1e-9:
+                    fit = fit_power_law(x, y, confidence)
+            for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
+                gdata[f"{name}_{k}"].append(getattr(fit, k) if fit is not None else math.nan)
+    return gdata
+
+
 def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     """Fits across a sweep: l_* ~ S^b per (kind, Delta) group and the stage-2 tension decay per case.
 
@@ -120,28 +148,7 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
         raise ConfigError("no datasets to fit")
     case = {k: ("case", np.array([r[k] for r in rows])) for k in rows[0]}
     groups = _groups(rows)
-    gdata = {k: [] for k in ("group_kind", "group_delta", "group_N", "group_vertices", "group_kT", "n_cases")}
-    for name in ("l_star", "l_peak"):
-        for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
-            gdata[f"{name}_{k}"] = []
-    for key, sel in groups.items():
-        kind, delta, N, nv, kT = key
-        gdata["group_kind"].append(kind)
-        gdata["group_delta"].append(delta)
-        gdata["group_N"].append(N)
-        gdata["group_vertices"].append(nv)
-        gdata["group_kT"].append(kT)
-        gdata["n_cases"].append(len(sel))
-        for name in ("l_star", "l_peak"):
-            pts = [(r["S"], r[name]) for r in sel if np.isfinite(r[name]) and r[name] > 0]
-            fit = None
-            # an ensemble at one S (every seed a point, one x) has no exponent: NaN, as a group too small
-            if len(pts) >= min_points:
-                x, y = map(np.asarray, zip(*pts, strict=True))
-                if np.ptp(np.log(x)) > 1e-9:
-                    fit = fit_power_law(x, y, confidence)
-            for k in ("exponent", "ci_low", "ci_high", "prefactor", "r2"):
-                gdata[f"{name}_{k}"].append(getattr(fit, k) if fit is not None else math.nan)
+    gdata = _group_fits(groups, confidence, min_points)
     group = {k: ("group", np.array(v)) for k, v in gdata.items()}
     out = xr.Dataset({**case, **group, **_ensemble_points(groups)})
     units = {"S": "1", "delta": "1", "l_star": "1", "l_peak": "1", "t_star": "1/gamma_dot"}

@@ -377,17 +377,22 @@ def plot_lstar(fit, outputs="lstar_vs_S.png", *, measure="l_star", dpi=150, guid
         x0 = math.exp(np.mean(np.log(S[ok])))
         y0 = math.exp(np.mean(np.log(y[ok])))
         ax.plot(xs, y0 * (xs / x0) ** (1.0 / 3.0), color="0.5", ls=":", lw=1.5, label=r"$S^{1/3}$ guide")
+    _lstar_axes(ax, S[ok], measure)
+    return save_figure(fig, outputs, dpi=dpi)
+
+
+def _lstar_axes(ax, S, measure):
+    """Fig. 4's log-log axes, labels and legend; ``S`` the flow strengths drawn."""
     ax.set_xscale("log")
     ax.set_yscale("log")
-    if ok.any() and np.ptp(np.log(S[ok])) < 1e-9:  # one S (an ensemble): a log axis of zero width shows nothing
-        ax.set_xlim(S[ok][0] / 2.0, S[ok][0] * 2.0)
+    if S.size and np.ptp(np.log(S)) < 1e-9:  # one S (an ensemble): a log axis of zero width shows nothing
+        ax.set_xlim(S[0] / 2.0, S[0] * 2.0)
     ax.set_xlabel("flow strength S")
     ax.set_ylabel(r"$l_*$ (eq. 31)" if measure == "l_star" else r"dominant mode $l$ at $t_*$")
     ax.set_title(r"characteristic wrinkle mode against flow strength", fontsize=10)
     if ax.lines:
         ax.legend(fontsize=7.5, loc="upper left")
     ax.grid(True, which="both", alpha=0.25)
-    return save_figure(fig, outputs, dpi=dpi)
 
 
 def _nearest_indices(t, times):
