@@ -207,14 +207,11 @@ class Inextensible(Integrator):
             from .mesh_ale import AreaALE
 
             self.ale = AreaALE(self.space, cfg.h)
-        elif cfg.mesh_ale == "shape":
-            from .mesh_ale import ShapeALE
+        elif cfg.mesh_ale in ("shape", "quality"):
+            from .mesh_ale import QualityALE, ShapeALE
 
-            self.ale = ShapeALE(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
-        elif cfg.mesh_ale == "quality":
-            from .mesh_ale import QualityALE
-
-            self.ale = QualityALE(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
+            ale = ShapeALE if cfg.mesh_ale == "shape" else QualityALE
+            self.ale = ale(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
                                      maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None,
                                      secant=cfg.tension_preconditioner == "secant")

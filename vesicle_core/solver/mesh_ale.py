@@ -171,19 +171,24 @@ class ShapeALE(AreaALE):
         return e, l2 / tot, tot
 
     def _extra_rows(self, X, dX, T):
+        return (self._share_rows(self._shares(X), dX, T, self.weight),)
+
+    def _share_rows(self, shares, dX, T, weight):
+        """The angle rows (matrix on the tangential unknowns, right-hand side) from ``_shares``' output, each
+        triangle's rows scaled by ``weight`` (F,)."""
         import scipy.sparse as sps
 
-        e, s, tot = self._shares(X)
+        e, s, tot = shares
         vals = []
         for c in range(3):  # row of share c; d s_c = sum_k (delta_ck - s_c) d(l_k^2) / tot
             for k in range(3):
-                g = ((float(c == k) - s[c]) / tot * self.weight)[:, None] * 2.0 * e[k]  # on x_{k+2}; -g on x_{k+1}
+                g = ((float(c == k) - s[c]) / tot * weight)[:, None] * 2.0 * e[k]  # on x_{k+2}; -g on x_{k+1}
                 vals += [g.ravel(), -g.ravel()]  # the order of _row_pattern's entries
         indptr, indices, slot, shape = self._pattern
         data = np.bincount(slot, weights=np.concatenate(vals), minlength=indices.size)
         G = sps.csr_matrix((data, indices, indptr), shape=shape)
-        b = (self.weight * (self.S_ref - s)).ravel() - G @ dX.ravel()
-        return ((G @ T, b),)
+        b = (weight * (self.S_ref - s)).ravel() - G @ dX.ravel()
+        return G @ T, b
 
     def carry(self, lipid_area, X_moved, w, held):
         """-> the lipid area each triangle carries after the mesh moved by w from X_moved (the membrane's new
@@ -207,13 +212,6 @@ class ShapeALE(AreaALE):
 Q_HI, Q_LO = 0.9, 0.6
 
 
-def _quality(X, faces):
-    """4 sqrt(3) A / (sum of the squared edges) per triangle (1: equilateral, 0: degenerate)."""
-    e = np.stack([X[faces[:, (c + 2) % 3]] - X[faces[:, (c + 1) % 3]] for c in range(3)])
-    A = 0.5 * np.linalg.norm(cross_rows(e[0], e[1]), axis=1)
-    return 4.0 * np.sqrt(3.0) * A / (e**2).sum(axis=(0, 2))
-
-
 class QualityALE(ShapeALE):
     """AreaALE with ShapeALE's angle rows only where a triangle has lost its shape (``mesh_ale: quality``).
 
@@ -232,29 +230,31 @@ class QualityALE(ShapeALE):
         if not 0.0 < q_lo < q_hi <= 1.0:
             raise ValueError(f"QualityALE: need 0 < q_lo < q_hi <= 1, got q_lo = {q_lo}, q_hi = {q_hi}")
         self.q_hi, self.q_lo = float(q_hi), float(q_lo)
-        self.q_ref = _quality(np.asarray(X0, dtype=float), self.faces)
-        self.full_weight = self.weight
+        self.q_ref = self._quality(np.asarray(X0, dtype=float), self._shares(np.asarray(X0, dtype=float)))
         self.active = 0  # triangles with angle rows at the last call
         self.active_max = 0
 
-    def ramp(self, X):
+    def _quality(self, X, shares):
+        """4 sqrt(3) A / (sum of the squared edges) per triangle (1: equilateral, 0: degenerate)."""
+        from ..geometry.surface import triangle_areas
+
+        return 4.0 * np.sqrt(3.0) * triangle_areas(X, self.faces) / shares[2]
+
+    def ramp(self, X, shares=None):
         """-> (F,) in [0, 1]: each triangle's share of the angle rows' weight."""
-        r = _quality(X, self.faces) / self.q_ref
+        r = self._quality(X, self._shares(X) if shares is None else shares) / self.q_ref
         return np.clip((self.q_hi - r) / (self.q_hi - self.q_lo), 0.0, 1.0)
 
     def _extra_rows(self, X, dX, T):
-        ramp = self.ramp(X)
-        self.active = int(np.count_nonzero(ramp))
+        shares = self._shares(X)
+        ramp = self.ramp(X, shares)
+        on = np.flatnonzero(ramp)
+        self.active = int(on.size)
         self.active_max = max(self.active_max, self.active)
         if not self.active:
             return ()
-        self.weight = self.full_weight * ramp
-        try:
-            ((GT, b),) = super()._extra_rows(X, dX, T)
-        finally:
-            self.weight = self.full_weight
+        GT, b = self._share_rows(shares, dX, T, self.weight * ramp)
         # the other triangles' rows are zero (and so is their right-hand side): leaving them out of the least
         # squares changes no iterate and saves their share of every LSQR product
-        nF = ramp.size
-        keep = (np.flatnonzero(ramp)[None, :] + nF * np.arange(3)[:, None]).ravel()
+        keep = (on[None, :] + ramp.size * np.arange(3)[:, None]).ravel()
         return ((GT[keep], b[keep]),)
