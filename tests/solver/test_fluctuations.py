@@ -374,7 +374,7 @@ def test_lm_noise_is_the_mean_of_this_and_the_next_steps_euler_draws():
         np.testing.assert_allclose(lm.velocity(DT, n), 0.5 * (e[n] + e[n + 1]), rtol=1e-12, atol=1e-14)
     assert lm.n_draws == 5  # steps 4, 5, 6, then 8, 9
     with pytest.raises(ConfigError, match="noise_scheme"):
-        ThermalNoise(st, KT, scheme="midpoint")
+        ThermalNoise(st, KT, scheme="heun")
 
 
 @pytest.mark.parametrize("scheme, factor", [("euler", 1.0 / (1.0 - 0.3)), ("lm", 1.0)])

@@ -160,18 +160,20 @@ def test_inextensible_run_holds_every_triangle(inext_run):
     assert ds.tension.values[-1] < ds.tension.sel(time=0.0, method="nearest")
 
 
-@pytest.mark.parametrize(("space", "kT", "ale", "precond"),
-                         [("triangle", 0.0, "none", "compliance"), ("harmonic", 0.0, "none", "compliance"),
-                          ("harmonic", 0.0, "shape", "compliance"), ("harmonic", 0.0405, "none", "compliance"),
-                          ("harmonic", 0.0405, "none", "secant")])
-def test_inextensible_resume_is_identical(tmp_path, space, kT, ale, precond):
+@pytest.mark.parametrize(("space", "kT", "ale", "precond", "noise"),
+                         [("triangle", 0.0, "none", "compliance", "lm"), ("harmonic", 0.0, "none", "compliance", "lm"),
+                          ("harmonic", 0.0, "shape", "compliance", "lm"), ("harmonic", 0.0405, "none", "compliance", "lm"),
+                          ("harmonic", 0.0405, "none", "secant", "lm"), ("harmonic", 0.0405, "none", "secant", "midpoint"),
+                          ("triangle", 0.0405, "none", "compliance", "midpoint")])
+def test_inextensible_resume_is_identical(tmp_path, space, kT, ale, precond, noise):
     """A run stopped after 25 steps and resumed from its checkpoint (every 7 steps) gives the uninterrupted run's
     frames bit for bit. The harmonic tension checkpoints its measured diagonal rho_l and its age, and each
     measurement's draw is seeded by its step; the thermal noise and its drift draw from (noise_seed, step) only;
     mesh_ale shape checkpoints the lipid area the triangles carry; cg_precond secant its operator model and the last
-    step's modelled noise response."""
+    step's modelled noise response; the midpoint scheme its two half increments and its drift from the same keys."""
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    cfg = _run_cfg(checkpoint_every=7, tension_space=space, kT=kT, noise_seed=5, mesh_ale=ale, cg_precond=precond)
+    cfg = _run_cfg(checkpoint_every=7, tension_space=space, kT=kT, noise_seed=5, mesh_ale=ale, cg_precond=precond,
+                   noise_scheme=noise)
     ref = xr.open_dataset(run(m, cfg, tmp_path / "a", progress=False)).load()
     # 25: past the bending limit's first re-measurement (step 20) and its checkpoint (21), so that the one at step
     # 40 starts from the checkpointed vector

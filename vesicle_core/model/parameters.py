@@ -423,9 +423,10 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         1.0,
         lo_open=True,
     ),
-    Parameter("noise_scheme", "lm", "str", "thermal noise: euler (each step its own draw; the stationary "
-              "spectrum is off by O(dt)) or lm (Leimkuhler-Matthews: the mean of this and the next step's draw; exact "
-              "for linear modes) (fluctuations.py)", choices=("euler", "lm")),
+    Parameter("noise_scheme", "lm", "str", "thermal noise: euler (each step its own draw; spectrum off by O(dt)), "
+              "lm (Leimkuhler-Matthews: the mean of this and the next step's draw; exact for linear modes) or midpoint "
+              "(Delong et al. 2014: predictor-corrector, two tension solves per step; midpoint.py)",
+              choices=("euler", "lm", "midpoint")),
     Parameter("noise_drift_every", 1, "int", "thermal noise: steps between the Ito drift's random finite differences "
               "(two constrained solves each), applied with that weight; 10 heats the shortest modes by 3-15% at "
               "N = 32; 0: no drift (paired runs at N = 32, either coupling: spectrum and centroid D within 1.1%; 3x "

@@ -88,6 +88,9 @@ class RunConfig:
         if self.kT > 0 and self.scheme != "inextensible":
             raise ConfigError(f"kT > 0 needs scheme 'inextensible' (the noise enters its tension solve); got scheme "
                               f"'{self.scheme}' (or set kT = 0)")
+        if self.noise_scheme == "midpoint" and self.scheme != "inextensible":
+            raise ConfigError(f"noise_scheme 'midpoint' is a variant of scheme 'inextensible' (two tension solves per "
+                              f"step); got scheme '{self.scheme}'")
         if self.kT > 0 and self.seed_spectrum != "mesh":
             raise ConfigError(f"kT = {self.kT:g} with seed_spectrum '{self.seed_spectrum}': the noise keeps the "
                               "membrane thermal throughout, and the PA's thermal seed at the reversal would add a "

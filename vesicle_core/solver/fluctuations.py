@@ -51,6 +51,11 @@ noise is the same Brownian path up to the end terms, and for x_{n+1} = (1 - a dt
 it is second order). Same cost: one more 3 N^3 draw, one FFT set. Numbers: those of steps n and n + 1 of the same
 counter-based stream, so a resumed run draws the same ones.
 
+``midpoint`` is the simple midpoint scheme of Delong et al. (2014), an integrator of its own
+(:class:`vesicle_core.solver.midpoint.MidpointInextensible`): the step's Brownian increment is split into two halves
+z1, z2 (streams 0 and 2 of the step), the predictor moves half a step with z1, the corrector the whole step with
+z1 + z2 from the predicted midpoint. Two tension solves per step.
+
 Drift
 -----
 A configuration-dependent mobility adds the drift kT div_X M to the Ito equation (Delong et al., J. Chem. Phys.
@@ -67,7 +72,7 @@ from ..errors import check_choice, check_range
 from ..errors import check_counter as _check_counter
 
 #: how a step's white noise is drawn (run parameter noise_scheme; module docstring, "Step")
-NOISE_SCHEMES = ("euler", "lm")
+NOISE_SCHEMES = ("euler", "lm", "midpoint")
 
 
 #: noise on markers closer than this many grid spacings is warned of: at a fixed tension the 2562-vertex mesh at N = 32
@@ -256,6 +261,20 @@ class ConstrainedMobility:
         self.mobility.prepare(X)
         self._geo = self.geometry(X)
 
+    def force(self, W):
+        """P^T W = W - D^T sigma: the forces W plus the tension they raise under the constraint (what the membrane
+        exerts on the fluid; ``apply`` is M of it)."""
+        from .tension import face_DT
+
+        geo, xp = self._geo, self.backend.xp
+        zero_area = xp.zeros(geo.area.shape[0], dtype=geo.area.dtype)
+        if self.harmonic:
+            c0 = np.zeros(self.tension.space.K)
+            sigma = self.tension.solve(geo, W, 0.0, zero_area, self.dt, c0, seed=self.step, warm=False)[1]
+        else:
+            sigma = self.tension.solve(geo, W, 0.0, zero_area, self.dt, zero_area)[0]
+        return W - face_DT(sigma, geo, self.tension.topo)
+
     def apply(self, W):
         geo, xp = self._geo, self.backend.xp
         zero_area = xp.zeros(geo.area.shape[0], dtype=geo.area.dtype)
@@ -314,6 +333,41 @@ class ThermalVelocity:
         """Longest dt (tau) whose rms noise displacement per component, sqrt(2 kT dt m_self), is ``max_step`` h."""
         check_range("noise_step", max_step, 0.0, None, lo_open=True)
         return (float(max_step) * float(h)) ** 2 / (2.0 * self.kT * self.self_mobility(X))
+
+    def half_increments(self, dt, step):
+        """The midpoint scheme's noise: two grid displacement fields over dt / 2 each, sqrt(kT dt / h^3) A^{1/2} z1
+        and the same of z2 (streams 0 and 2 of the step), whose sum is one Brownian increment over dt (covariance
+        2 kT dt M after interpolation)."""
+        return (self.noise.displacement(0.5 * dt, step, stream=0).copy(),
+                self.noise.displacement(0.5 * dt, step, stream=2).copy())
+
+    def spread_drift(self, X, dt, step):
+        """The midpoint scheme's random finite difference: the grid velocity L^{-1} xi of the force field
+        (kT / delta) [S(X+) P^T(X+) W - S(X-) P^T(X-) W], X+- = X +- delta W / 2, W from stream 1 of the step (two
+        constrained solves, one Stokes solve), weighted by drift_every; None on steps without a drift.
+
+        In the mean it is kT J A d_k (S P^T)_{.k}: the half of kT div_X N = kT div_X (P J A S P^T) in which the
+        derivative acts on the right-hand factor. The corrector's noise, P J A^{1/2} (z1 + z2) interpolated and
+        projected at the predicted midpoint, supplies the other half, the derivative of the left-hand factor P J
+        (Delong et al. 2014, section on the midpoint scheme; here with the constraint's projection P in both
+        factors)."""
+        if not self.drift_every or step % self.drift_every:
+            return None
+        con = self.constrained
+        be, coupler = con.backend, con.mobility.coupler
+        con.dt, con.step = dt, step
+        X = np.asarray(be.asnumpy(X), dtype=np.float64)
+        W = noise_generator(self.seed, step, 1).standard_normal(X.shape)
+        n0 = con.mobility.n_products
+        grid = None
+        for s in (0.5, -0.5):
+            con.prepare(be.asarray(X + s * self.delta * W))
+            f = con.force(be.asarray(W, dtype=con._geo.area.dtype))
+            g = coupler.spread(f)  # the spreader's buffer: consumed before the next spread
+            grid = s * 2.0 * g.copy() if grid is None else grid + s * 2.0 * g
+        self.stokes_solves += con.mobility.n_products - n0 + 1
+        grid *= self.drift_every * self.kT / self.delta
+        return self.noise.stokes.velocity(grid)
 
     def __call__(self, X, dt, step):
         """(V, 3) backend array: noise velocity + drift at X for the step ``step`` of length dt. Leaves the mobility

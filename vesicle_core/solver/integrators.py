@@ -144,6 +144,7 @@ class Inextensible(Integrator):
 
     name = "inextensible"
     adaptive = True
+    strain_order = 2  # the step's area change beyond the linearised constraint is O(dt^2) (linearisation_strain)
 
     def __init__(self, solver, dt_bending: float, X0=None):
         from .mobility import IBMMobility
@@ -245,8 +246,8 @@ class Inextensible(Integrator):
             # the background flow strains the vesicle by dt_growth / 10 per step (1% at the default 0.1)
             limits["flow"] = 0.1 * cfg.dt_growth / cfg.chi
         if state.strain_err > 0 and state.dt_steps:
-            # the last step's second-order area change, which the linearised constraint leaves: it scales as dt^2
-            limits["dt_strain"] = state.dt_steps[-1] * math.sqrt(cfg.dt_strain / state.strain_err)
+            # the last step's area change beyond the linearised constraint: it scales as dt^strain_order
+            limits["dt_strain"] = state.dt_steps[-1] * (cfg.dt_strain / state.strain_err) ** (1.0 / self.strain_order)
         self.binding_limit = min(limits, key=limits.get)  # named in the error when the step collapses
         return limits[self.binding_limit]
 
@@ -267,19 +268,26 @@ class Inextensible(Integrator):
             self.dt_bending_min = min(self.dt_bending_min, state.dt_bending)
             self.dt_bending_last = state.dt_bending
 
-    def linearisation_strain(self, X, dX) -> float:
+    def linearisation_strain(self, X, dX, geo_lin=None) -> float:
         """Largest strain of the held area (per triangle, or its W-projection on the harmonic space) that the step dX
         from X adds beyond first order: P (A(X + dX) - A(X) - D dX) / A^0, the change the linearised constraint
-        cannot see. It scales as |dX|^2, so as dt^2. The CG's residual and an area error the step starts with are
+        cannot see. It scales as |dX|^2, so as dt^2; with D taken at ``geo_lin`` (the midpoint scheme's predicted
+        midpoint), as dt^3. The CG's residual and an area error the step starts with are
         left out: neither shrinks with dt (the next solve corrects both), so a shorter step cannot reduce them."""
-        from ..geometry.surface import triangle_area_nonlinear
+        from ..geometry.surface import triangle_area_nonlinear, triangle_areas
+        from .tension import face_D
 
         be = self.solver.be
         if self._ref_host is None:  # constant: copied off the device once, not every step
             mem = self.solver.membrane
             self._ref_host = (be.asnumpy(mem.ref.face_area), be.asnumpy(mem.topo.faces))
         A0, faces = self._ref_host
-        e = triangle_area_nonlinear(be.asnumpy(X), faces, be.asnumpy(dX)) / A0
+        if geo_lin is None:
+            e = triangle_area_nonlinear(be.asnumpy(X), faces, be.asnumpy(dX)) / A0
+        else:
+            Xh, dXh = (np.asarray(be.asnumpy(a), dtype=np.float64) for a in (X, dX))
+            lin = np.asarray(be.asnumpy(face_D(dX, geo_lin, self.solver.membrane.topo)), dtype=np.float64)
+            e = (triangle_areas(Xh + dXh, faces) - triangle_areas(Xh, faces) - lin) / A0
         if self.space is None:
             return float(np.abs(e).max())
         # the held part in coefficients; the l = 0 one only when the area is held
@@ -288,37 +296,57 @@ class Inextensible(Integrator):
         return float(np.abs(self.space.faces(d)).max())
 
     def step(self, state, X, F, geo, dt, rate):
-        cfg, xp = self.cfg, self.solver.xp
-        mem = self.solver.membrane
-        nF = geo.area.shape[0]
-        if state.sigma is None:
-            state.sigma = xp.zeros(nF)
+        cfg = self.cfg
+        self._init_sigma(state, geo)
         self.mobility.prepare(X)
-        guess = self._warm_start(state)
-        u_inf = background_velocity(X, rate) if cfg.chi > 0 else 0.0
+        u_known = background_velocity(X, rate) if cfg.chi > 0 else 0.0
         u_noise = None
         if self.thermal is not None:  # noise and drift: known velocities the constraint projects, like the flow's
             self._restore_rho(state)
             u_noise = self.thermal(X, dt, state.step)
-            u_inf = u_inf + u_noise
-        # the area each triangle should have: the reference's, or the lipid area it carries (mesh_ale shape)
-        ref = mem.ref.face_area if state.lipid_area is None else xp.asarray(state.lipid_area)
+            u_known = u_known + u_noise
+        ref = self.held_area(state)
+        _, sigma, U = self.tension_solve(state, geo, F, u_known, geo.area - ref, dt, self._warm_start(state), u_noise,
+                                         state.tension_noise)
+        self.iterations.append(self.tension.last.iterations)
+        # measured on the membrane's own displacement, before the ALE's tangential one: that one is not a step of
+        # the dynamics (the noise's area change scales as dt, so noisy runs are left to noise_step)
+        strain = self.linearisation_strain(X, U * dt) if self.thermal is None else 0.0
+        return self.finish_step(state, X, geo, sigma, U, dt, ref, strain)
+
+    def _init_sigma(self, state, geo):
+        if state.sigma is None:
+            state.sigma = self.solver.xp.zeros(geo.area.shape[0])
+
+    def held_area(self, state):
+        """The area each triangle should have: the reference's, or the lipid area it carries (mesh_ale shape)."""
+        return self.solver.membrane.ref.face_area if state.lipid_area is None else self.solver.xp.asarray(
+            state.lipid_area)
+
+    def tension_solve(self, state, geo, F, u_known, area_error, dt, start, u_noise, noise_c, coefficients=False):
+        """One tension solve at geo's positions (the mobility prepared there) -> (coefficients or None, per-triangle
+        tension, velocity U). ``start``: a per-triangle tension, or the space's coefficients when ``coefficients``
+        (the triangle space ignores the flag); ``u_noise``, ``noise_c``: the harmonic solver's unpredicted part of
+        u_known and the last solve's modelled noise response (HarmonicTensionSolver.solve)."""
         if self.space is None:
-            sigma, U = self.tension.solve(geo, F, u_inf, geo.area - ref, dt, guess)
-        else:  # the guess lies in the space (both tensions are B c): its coefficients by the W projection
-            ts = self._restore_rho(state)
-            _, sigma, U = ts.solve(geo, F, u_inf, geo.area - ref, dt,
-                                   self._start(self.space.fit(self.solver.be.asnumpy(guess))), seed=state.step,
-                                   unpredicted=u_noise, noise_c=state.tension_noise)
+            sigma, U = self.tension.solve(geo, F, u_known, area_error, dt, start)
+            return None, sigma, U
+        ts = self._restore_rho(state)
+        # a per-triangle guess lies in the space (both tensions are B c): its coefficients by the W projection
+        c0 = start if coefficients else self._start(self.space.fit(self.solver.be.asnumpy(start)))
+        return ts.solve(geo, F, u_known, area_error, dt, c0, seed=state.step, unpredicted=u_noise, noise_c=noise_c)
+
+    def finish_step(self, state, X, geo, sigma, U, dt, ref, strain):
+        """Keep the step's tension and solver state on ``state``; -> the displacement U dt plus the ALE's."""
+        cfg, mem = self.cfg, self.solver.membrane
+        if self.space is not None:
+            ts = self.tension
             state.tension_rho, state.tension_rho_age, state.tension_noise = ts.rho, ts._uses, ts.noise_c
             state.tension_secant = None if ts.secant is None else ts.secant.R
         state.sigma_prev = state.sigma
         state.sigma = sigma
         state.dt_steps = (state.dt_steps[-1] if state.dt_steps else dt, dt)
-        self.iterations.append(self.tension.last.iterations)
-        # measured on the membrane's own displacement, before the ALE's tangential one: that one is not a step of
-        # the dynamics (the noise's area change scales as dt, so noisy runs are left to noise_step)
-        state.strain_err = self.linearisation_strain(X, U * dt) if self.thermal is None else 0.0
+        state.strain_err = strain
         if self.ale is None:
             return U * dt
         # tangential mesh motion holding the triangle areas outside the tension's space
@@ -390,6 +418,16 @@ class Inextensible(Integrator):
 
 #: scheme name -> integrator class; the names are the model's (model.parameters.SCHEMES), each class carries its own
 SCHEMES = {cls.name: cls for cls in (Explicit, Projection, Inextensible)}
+
+
+def integrator_class(cfg):
+    """The class that runs ``cfg``: its scheme's, or the inextensible scheme's midpoint variant (noise_scheme
+    midpoint, module midpoint)."""
+    if cfg.scheme == "inextensible" and cfg.noise_scheme == "midpoint":
+        from .midpoint import MidpointInextensible
+
+        return MidpointInextensible
+    return SCHEMES[cfg.scheme]
 # a scheme RunConfig accepts but no class runs (or the reverse) fails here, at import
 if tuple(SCHEMES) != SCHEME_NAMES:
     raise RuntimeError(f"integrators {tuple(SCHEMES)} do not match the schemes of model.parameters {SCHEME_NAMES}")

@@ -218,7 +218,7 @@ class _Run:
     """
 
     def __init__(self, mesh, cfg: RunConfig, outdir: Path, progress: bool):
-        from .integrators import SCHEMES as INTEGRATORS
+        from .integrators import integrator_class
 
         self.mesh, self.cfg, self.outdir = mesh, cfg, outdir
         _check_mesh_spacing(mesh, cfg)
@@ -231,7 +231,7 @@ class _Run:
         self.state, self.resumed = _start(mesh, cfg, solver, outdir, self.seed_shape)
         state = self.state
         self.dt = dt = state.dt
-        self.integ = integ = INTEGRATORS[cfg.scheme](solver, dt, X0=mesh.vertices)
+        self.integ = integ = integrator_class(cfg)(solver, dt, X0=mesh.vertices)
         self.adaptive = integ.adaptive and isinstance(cfg.dt, str)  # a fixed dt overrides an adaptive scheme
         integ.adaptive = self.adaptive
         if state.cg_iterations is None:
