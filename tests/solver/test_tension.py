@@ -161,9 +161,12 @@ def test_inextensible_run_holds_every_triangle(inext_run):
 
 
 @pytest.mark.parametrize(("space", "kT", "ale", "precond", "noise"),
-                         [("triangle", 0.0, "none", "compliance", "lm"), ("harmonic", 0.0, "none", "compliance", "lm"),
-                          ("harmonic", 0.0, "shape", "compliance", "lm"), ("harmonic", 0.0405, "none", "compliance", "lm"),
-                          ("harmonic", 0.0405, "none", "secant", "lm"), ("harmonic", 0.0405, "none", "secant", "midpoint"),
+                         [("triangle", 0.0, "none", "compliance", "lm"),
+                          ("harmonic", 0.0, "none", "compliance", "lm"),
+                          ("harmonic", 0.0, "shape", "compliance", "lm"),
+                          ("harmonic", 0.0405, "none", "compliance", "lm"),
+                          ("harmonic", 0.0405, "none", "secant", "lm"),
+                          ("harmonic", 0.0405, "none", "secant", "midpoint"),
                           ("triangle", 0.0405, "none", "compliance", "midpoint")])
 def test_inextensible_resume_is_identical(tmp_path, space, kT, ale, precond, noise):
     """A run stopped after 25 steps and resumed from its checkpoint (every 7 steps) gives the uninterrupted run's
