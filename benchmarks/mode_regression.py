@@ -1,0 +1,106 @@
+"""Onsager regression at equilibrium: the noisy run's mode autocorrelation times against the deterministic
+relaxation of the same discretisation, started from the run's own frames.
+
+    python benchmarks/mode_regression.py TRAJECTORY.nc [--starts 4] [--span 0.006] [--l-max 16] > numbers.md
+
+TRAJECTORY is a noisy run without flow at a fixed tension (``tension_fixed``, chi = 0, kT > 0; docs/thermal.md
+section 7). ``--starts`` frames from its second half are each taken as the start of a run with the trajectory's own
+parameters but kT = 0, frames every step, for ``--span`` tau. In the linear regime the mean deterministic decay of an
+equilibrium state's modes is their equilibrium autocorrelation function (Onsager's regression hypothesis), so per l:
+
+* C_l(t) = sum_m Re[u_lm(t) u_lm(0)^*] / sum_m |u_lm(0)|^2, summed over the starts, and its 1/e time (interpolated);
+* the noisy run's autocorrelation time of Re/Im u_lm, m > 0, by the definition of ``thermal_equilibrium.py``
+  (burn-in 30%), and the ratio of the two.
+
+This tests "mode autocorrelation times equal to the same grid's deterministic relaxation" with the membrane, tension
+space, ALE, mesh and coupling of the run itself, where ``thermal_equilibrium.py`` compares with the clean interface's
+rate ratio r_l of the resolution table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+from dataclasses import fields
+
+import numpy as np
+import xarray as xr
+
+from vesicle_core.geometry.mesh import Mesh
+from vesicle_core.model.run_config import RunConfig
+from vesicle_core.solver.simulate import run
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from thermal_equilibrium import corr_time, spectra  # noqa: E402
+
+
+def run_config(ds, **override) -> RunConfig:
+    """The trajectory's run parameters (netCDF attributes), with ``override``."""
+    names = {f.name for f in fields(RunConfig)}
+
+    def value(v):  # None as "default", booleans as strings, numbers as NumPy scalars
+        return {"default": None, "True": True, "False": False}.get(v, v) if isinstance(v, str) else (
+            v.item() if hasattr(v, "item") else v)
+
+    params = {k: value(v) for k, v in ds.attrs.items() if k in names}
+    params.update(override)
+    return RunConfig.from_dict(params)
+
+
+def decay(ds, frame, span, l_max, delta, workdir):
+    """u_lm(t) (frames, l, m) of a deterministic run from frame ``frame`` of ds, frames every step."""
+    f = ds.face_node_connectivity.values
+    X = np.stack([ds.node_x.values[frame], ds.node_y.values[frame], ds.node_z.values[frame]], -1).astype(float)
+    dt = float(ds.attrs["dt_tau"])
+    cfg = run_config(ds, kT=0.0, t_end=span, output_every=dt, dt=dt, stretch=0.0)
+    out = run(Mesh(X, f.astype(np.int64), {}), cfg, os.path.join(workdir, f"start{frame}"), progress=False)
+    det = xr.open_dataset(out)
+    return det.t_tau.values - det.t_tau.values[0], spectra(det, l_max, delta, 0)
+
+
+def one_over_e(t, c):
+    below = np.flatnonzero(c < np.exp(-1))
+    if not below.size:
+        return np.nan
+    j = below[0]
+    return t[j - 1] + (c[j - 1] - np.exp(-1)) / (c[j - 1] - c[j]) * (t[j] - t[j - 1])
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("trajectory")
+    ap.add_argument("--starts", type=int, default=4, help="deterministic runs, from frames of the second half")
+    ap.add_argument("--span", type=float, default=0.006, help="length of each deterministic run [tau]")
+    ap.add_argument("--l-max", type=int, default=16)
+    a = ap.parse_args()
+    ds = xr.open_dataset(a.trajectory).load()
+    delta = float(ds.attrs.get("mesh_target_delta", ds.attrs["delta"]))  # as thermal_equilibrium.py
+    n = ds.sizes["time"]
+    starts = np.linspace(n // 2, n - 1, a.starts).astype(int)
+    num = den = None
+    with tempfile.TemporaryDirectory() as work:
+        for k in starts:
+            t, u = decay(ds, int(k), a.span, a.l_max, delta, work)
+            c = np.real(u * np.conj(u[:1])).sum(-1)  # (frames, l)
+            num = c if num is None else num + c
+            den = c[0] if den is None else den + c[0]
+    C = num / den
+    noisy = spectra(ds, a.l_max, delta, int(0.3 * n))
+    dt_frames = float(np.median(np.diff(ds.t_tau.values)))
+    L = a.l_max
+    print(f"run: {a.trajectory}; {a.starts} deterministic runs of {a.span:g} tau (frames every step) from frames "
+          f"{', '.join(str(int(k)) for k in starts)}; kT = 0, otherwise its parameters")
+    print()
+    print("| l | deterministic 1/e time [tau] | noisy autocorrelation time [tau] | noisy / deterministic |")
+    print("|---|---|---|---|")
+    for l in range(2, L + 1):
+        t_det = one_over_e(t, C[:, l])
+        comps = np.concatenate([noisy[:, l, L + 1:L + 1 + l].real, noisy[:, l, L + 1:L + 1 + l].imag], axis=1)
+        t_noisy = corr_time(comps, dt_frames, max(4, noisy.shape[0] // 4))
+        print(f"| {l} | {t_det:.4g} | {t_noisy:.4g} | {t_noisy / t_det:.3f} |")
+
+
+if __name__ == "__main__":
+    main()
