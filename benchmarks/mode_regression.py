@@ -28,7 +28,7 @@ import argparse
 import os
 import sys
 import tempfile
-from dataclasses import fields
+from dataclasses import replace
 
 import numpy as np
 import xarray as xr
@@ -42,16 +42,8 @@ from thermal_equilibrium import corr_time, spectra  # noqa: E402
 
 
 def run_config(ds, **override) -> RunConfig:
-    """The trajectory's run parameters (netCDF attributes), with ``override``."""
-    names = {f.name for f in fields(RunConfig)}
-
-    def value(v):  # None as "default", booleans as strings, numbers as NumPy scalars
-        return {"default": None, "True": True, "False": False}.get(v, v) if isinstance(v, str) else (
-            v.item() if hasattr(v, "item") else v)
-
-    params = {k: value(v) for k, v in ds.attrs.items() if k in names}
-    params.update(override)
-    return RunConfig.from_dict(params)
+    """The trajectory's run parameters, with ``override``."""
+    return replace(RunConfig.from_attrs(ds.attrs), **override)
 
 
 def decay(ds, frame, span, l_max, delta, workdir):

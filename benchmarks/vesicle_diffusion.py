@@ -79,20 +79,13 @@ def grid_mobility(ds):
 
 def constrained_centroid_mobility(ds):
     """e^T N e per axis (kT-free) at the first frame, with N the constrained mobility of the run's configuration."""
-    from dataclasses import fields
+    from dataclasses import replace
 
     from vesicle_core.model.run_config import RunConfig
     from vesicle_core.solver.integrators import Inextensible
     from vesicle_core.solver.mobility import IBMSolver
 
-    names = {f.name for f in fields(RunConfig)}
-    def value(v):  # netCDF attributes: None as "default", booleans as strings, numbers as NumPy scalars
-        return {"default": None, "True": True, "False": False}.get(v, v) if isinstance(v, str) else (
-            v.item() if hasattr(v, "item") else v)
-
-    params = {k: value(v) for k, v in ds.attrs.items() if k in names}
-    params.update(cg_tol=1e-10, cg_maxiter=2000, noise_scheme="euler")
-    cfg = RunConfig.from_dict(params)
+    cfg = replace(RunConfig.from_attrs(ds.attrs), cg_tol=1e-10, cg_maxiter=2000, noise_scheme="euler")
     f = ds.face_node_connectivity.values
     X = np.stack([ds.node_x.values[0], ds.node_y.values[0], ds.node_z.values[0]], -1).astype(float)
     solver = IBMSolver(f, X, cfg)

@@ -98,3 +98,17 @@ def test_runconfig_checks_and_derives():
     assert attrs["Lambda"] == "default" and attrs["Lambda_eff"] == c.Lambda_eff and attrs["h"] == c.h
     assert pickle.loads(pickle.dumps(c)) == c
     assert RunConfig.__module__ == "vesicle_core.model.run_config"
+
+
+def test_from_attrs_gives_back_the_config_a_trajectory_stored(tmp_path):
+    """as_attrs -> a trajectory's netCDF attributes (booleans as strings, None as "default") -> from_attrs is the
+    identity; keys that are not run parameters are ignored."""
+    import xarray as xr
+
+    cfg = RunConfig(chi=3.0, N=32, scheme="inextensible", kT=0.04, noise_seed=9, noise_scheme="midpoint",
+                    store_velocity=True, tension_space="harmonic", tension_l_max=None, dt=2.5e-4)
+    attrs = {k: (str(v) if isinstance(v, bool) else v) for k, v in cfg.as_attrs().items()}
+    xr.Dataset(attrs={**attrs, "title": "x"}).to_netcdf(tmp_path / "t.nc")
+    back = RunConfig.from_attrs(xr.open_dataset(tmp_path / "t.nc").attrs)
+    assert back == cfg
+    assert back.store_velocity is True and back.tension_l_max is None and isinstance(back.N, int)

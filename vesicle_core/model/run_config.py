@@ -131,6 +131,20 @@ class RunConfig:
             raise ConfigError(f"unknown run parameter(s) {unknown}; allowed: {sorted(names)}")
         return cls(**d)
 
+    @classmethod
+    def from_attrs(cls, attrs: dict) -> "RunConfig":
+        """The run parameters of a trajectory's attributes (the inverse of :meth:`as_attrs` after a netCDF round
+        trip: None stored as "default", booleans as "True"/"False", numbers as NumPy scalars); other keys are
+        ignored."""
+        names = {f.name for f in fields(cls)}
+
+        def value(v):
+            if isinstance(v, str):
+                return {"default": None, "True": True, "False": False}.get(v, v)
+            return v.item() if hasattr(v, "item") else v
+
+        return cls.from_dict({k: value(v) for k, v in attrs.items() if k in names})
+
     def as_attrs(self) -> dict:
         out = {}
         for k, v in asdict(self).items():
