@@ -9,9 +9,10 @@ from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as Mm
 from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.fluctuations import mobility_divergence
-from vesicle_core.solver.integrators import Inextensible, integrator_class
+from vesicle_core.solver.integrators import Inextensible
 from vesicle_core.solver.midpoint import MidpointInextensible
 from vesicle_core.solver.mobility import IBMSolver
+from vesicle_core.solver.schemes import integrator_class
 from vesicle_core.solver.trajectory import State
 
 KT = 0.0405

@@ -16,6 +16,8 @@ time-integrated displacement of eq. (29) (finite Re).
   ``tension_space: harmonic`` carries the tension in real spherical harmonics instead
   (:mod:`vesicle_core.solver.tension_harmonic`), optionally with a tangential mesh motion (``mesh_ale: area``, or
   ``shape``, which also keeps the triangles' angles and carries the lipid area the mesh moves).
+  ``noise_scheme: midpoint`` runs it as the stochastic midpoint method (:mod:`vesicle_core.solver.midpoint`, chosen by
+  :func:`vesicle_core.solver.schemes.integrator_class`): two tension solves per step, second order without noise.
 """
 
 from __future__ import annotations
@@ -419,15 +421,6 @@ class Inextensible(Integrator):
 #: scheme name -> integrator class; the names are the model's (model.parameters.SCHEMES), each class carries its own
 SCHEMES = {cls.name: cls for cls in (Explicit, Projection, Inextensible)}
 
-
-def integrator_class(cfg):
-    """The class that runs ``cfg``: its scheme's, or the inextensible scheme's midpoint variant (noise_scheme
-    midpoint, module midpoint)."""
-    if cfg.scheme == "inextensible" and cfg.noise_scheme == "midpoint":
-        from .midpoint import MidpointInextensible
-
-        return MidpointInextensible
-    return SCHEMES[cfg.scheme]
 # a scheme RunConfig accepts but no class runs (or the reverse) fails here, at import
 if tuple(SCHEMES) != SCHEME_NAMES:
     raise RuntimeError(f"integrators {tuple(SCHEMES)} do not match the schemes of model.parameters {SCHEME_NAMES}")

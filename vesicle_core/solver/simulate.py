@@ -218,7 +218,7 @@ class _Run:
     """
 
     def __init__(self, mesh, cfg: RunConfig, outdir: Path, progress: bool):
-        from .integrators import integrator_class
+        from .schemes import integrator_class
 
         self.mesh, self.cfg, self.outdir = mesh, cfg, outdir
         _check_mesh_spacing(mesh, cfg)
