@@ -346,11 +346,11 @@ class ThermalVelocity:
         (kT / delta) [S(X+) P^T(X+) W - S(X-) P^T(X-) W], X+- = X +- delta W / 2, W from stream 1 of the step (two
         constrained solves, one Stokes solve), weighted by drift_every; None on steps without a drift.
 
-        In the mean it is kT J A d_k (S P^T)_{.k}: the half of kT div_X N = kT div_X (P J A S P^T) in which the
+        In the mean it is kT J A d_k (S P^T)_{.k}: the term of kT div_X N = kT div_X (P J A S P^T) in which the
         derivative acts on the right-hand factor. The corrector's noise, P J A^{1/2} (z1 + z2) interpolated and
-        projected at the predicted midpoint, supplies the other half, the derivative of the left-hand factor P J
-        (Delong et al. 2014, section on the midpoint scheme; here with the constraint's projection P in both
-        factors)."""
+        projected at the predicted midpoint, supplies the other term, the derivative of the left-hand factor P J
+        (Delong et al. 2014, the midpoint scheme; here with the constraint's projection P in both factors). On the
+        test vesicle this term is below the sampling error of the drift (tests/solver/test_midpoint.py)."""
         if not self.drift_every or step % self.drift_every:
             return None
         con = self.constrained
