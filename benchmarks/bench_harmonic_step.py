@@ -20,6 +20,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
+import inspect
 import json
 import sys
 import tempfile
@@ -41,13 +42,23 @@ from vesicle_core.solver import tension_harmonic as TH  # noqa: E402
 from vesicle_core.solver.simulate import run  # noqa: E402
 
 
+def set_defaults(func, **values):
+    """Replace some keyword defaults of ``func`` by name (``__defaults__`` is positional: a tuple written by hand
+    shifts onto the wrong parameters once the signature grows)."""
+    names = [p.name for p in inspect.signature(func).parameters.values() if p.default is not inspect.Parameter.empty]
+    defaults = list(func.__defaults__)
+    for name, value in values.items():
+        defaults[names.index(name)] = value
+    func.__defaults__ = tuple(defaults)
+
+
 def patch(a):
-    """Set the solver's constants for this process: the ALE's LSQR iterations and the rho_l measurement."""
-    MA.ALE_ITERATIONS = a.ale_iterations
-    MA.AreaALE.__init__.__defaults__ = (1e-3, a.ale_iterations, a.ale_cap, 1.0)
+    """Set the solver's constants for this process: the ALE's LSQR iterations and step cap (AreaALE, and through
+    it ShapeALE and QualityALE) and the rho_l measurement."""
+    set_defaults(MA.AreaALE.__init__, iter_lim=a.ale_iterations, max_step=a.ale_cap)
     if a.rho == "per-l":
         TH.EXACT_L = 10**6
-    TH.HarmonicTensionSolver.__init__.__defaults__ = (1e-5, 200, a.rho_refresh, a.rho_stale, TH.RHO_PROBES, 0)
+    set_defaults(TH.HarmonicTensionSolver.__init__, refresh=a.rho_refresh, stale=a.rho_stale)
 
 
 def main():
