@@ -261,27 +261,24 @@ class ConstrainedMobility:
         self.mobility.prepare(X)
         self._geo = self.geometry(X)
 
+    def _solve(self, W):
+        """(per-triangle tension, velocity) of the constrained solve for forces W at the prepared positions."""
+        geo, xp = self._geo, self.backend.xp
+        zero_area = xp.zeros(geo.area.shape[0], dtype=geo.area.dtype)
+        if self.harmonic:
+            c0 = np.zeros(self.tension.space.K)
+            return self.tension.solve(geo, W, 0.0, zero_area, self.dt, c0, seed=self.step, warm=False)[1:]
+        return self.tension.solve(geo, W, 0.0, zero_area, self.dt, zero_area)
+
     def force(self, W):
         """P^T W = W - D^T sigma: the forces W plus the tension they raise under the constraint (what the membrane
         exerts on the fluid; ``apply`` is M of it)."""
         from .tension import face_DT
 
-        geo, xp = self._geo, self.backend.xp
-        zero_area = xp.zeros(geo.area.shape[0], dtype=geo.area.dtype)
-        if self.harmonic:
-            c0 = np.zeros(self.tension.space.K)
-            sigma = self.tension.solve(geo, W, 0.0, zero_area, self.dt, c0, seed=self.step, warm=False)[1]
-        else:
-            sigma = self.tension.solve(geo, W, 0.0, zero_area, self.dt, zero_area)[0]
-        return W - face_DT(sigma, geo, self.tension.topo)
+        return W - face_DT(self._solve(W)[0], self._geo, self.tension.topo)
 
     def apply(self, W):
-        geo, xp = self._geo, self.backend.xp
-        zero_area = xp.zeros(geo.area.shape[0], dtype=geo.area.dtype)
-        if self.harmonic:
-            c0 = np.zeros(self.tension.space.K)
-            return self.tension.solve(geo, W, 0.0, zero_area, self.dt, c0, seed=self.step, warm=False)[2]
-        return self.tension.solve(geo, W, 0.0, zero_area, self.dt, zero_area)[1]
+        return self._solve(W)[1]
 
 
 class ThermalVelocity:
@@ -338,8 +335,9 @@ class ThermalVelocity:
         """The midpoint scheme's noise: two grid displacement fields over dt / 2 each, sqrt(kT dt / h^3) A^{1/2} z1
         and the same of z2 (streams 0 and 2 of the step), whose sum is one Brownian increment over dt (covariance
         2 kT dt M after interpolation)."""
-        return (self.noise.displacement(0.5 * dt, step, stream=0).copy(),
-                self.noise.displacement(0.5 * dt, step, stream=2).copy())
+        # each call returns a new array (the inverse FFT's output), so the first survives the second draw
+        return (self.noise.displacement(0.5 * dt, step, stream=0),
+                self.noise.displacement(0.5 * dt, step, stream=2))
 
     def spread_drift(self, X, dt, step):
         """The midpoint scheme's random finite difference: the grid velocity L^{-1} xi of the force field
@@ -364,7 +362,7 @@ class ThermalVelocity:
             con.prepare(be.asarray(X + s * self.delta * W))
             f = con.force(be.asarray(W, dtype=con._geo.area.dtype))
             g = coupler.spread(f)  # the spreader's buffer: consumed before the next spread
-            grid = s * 2.0 * g.copy() if grid is None else grid + s * 2.0 * g
+            grid = s * 2.0 * g if grid is None else grid + s * 2.0 * g  # a new array: g is the reused buffer
         self.stokes_solves += con.mobility.n_products - n0 + 1
         grid *= self.drift_every * self.kT / self.delta
         return self.noise.stokes.velocity(grid)
