@@ -87,3 +87,24 @@ def test_set_parses_python_float_notation():
     # Snakemake hands params to the shell as Python writes them: 2e-05, not YAML's 2.0e-05
     assert _parse_set(["dt=2e-05", "N=64", "Lambda=null", "dt_safety=0.4", "scheme=explicit"]) == {
         "dt": 2e-05, "N": 64, "Lambda": None, "dt_safety": 0.4, "scheme": "explicit"}
+
+
+def test_run_command_reports_where_the_time_went(tmp_path, capsys):
+    import xarray as xr
+
+    mesh = tmp_path / "mesh.nc"
+    assert main(["mesh", "-o", str(mesh), "--level", "2"]) == 0
+    sets = ["N=16", "scheme=inextensible", "tension_space=harmonic", "chi=10", "stretch=0.05", "t_end=0.05",
+            "output_every=0.025"]
+    args = ["run", str(mesh), "-o", str(tmp_path / "run")]
+    for kv in sets:
+        args += ["--set", kv]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    with xr.open_dataset(tmp_path / "run" / "trajectory.nc") as ds:
+        at = ds.attrs
+    # the Stokes products are part of the call, and every step makes at least one
+    assert 0 < at["stokes_s"] < at["wall_time_s_last_call"]
+    assert at["stokes_solves"] >= at["steps"] > 0
+    share = round(100 * at["stokes_s"] / at["wall_time_s_last_call"])
+    assert f"{at['steps']} steps" in out and f"Stokes products {share}%" in out

@@ -148,7 +148,7 @@ def test_the_per_frame_scalars_are_those_docs_datasets_lists(files):
     from vesicle_core.solver.trajectory import TrajectoryWriter
 
     doc = (Path(__file__).resolve().parents[2] / "docs" / "datasets.md").read_text()
-    section = doc.split("### Per-frame scalars of a trajectory")[1].split("\n## ")[0]
+    section = doc.split("### Per-frame scalars of a trajectory")[1].split("\n#")[0]
     listed = {name for row in section.splitlines() if row.startswith("| `")
               for name in re.findall(r"`([a-z_0-9]+)`", row.split("|")[1])}
     assert listed == set(TrajectoryWriter.FRAME_VARS)

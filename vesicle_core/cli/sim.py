@@ -110,7 +110,25 @@ def _cmd_run(a):
     mesh = M.load(a.mesh)
     path = run(mesh, cfg, a.outdir, progress=not a.quiet)
     print(f"wrote {path}")
+    if not a.quiet:
+        print(_cost_summary(path))
     return 0
+
+
+def _cost_summary(path) -> str:
+    """One line of where this call's wall time went, from the finished trajectory's statistics."""
+    import xarray as xr
+
+    with xr.open_dataset(path) as ds:
+        at = ds.attrs
+    steps, wall = int(at.get("steps", 0)), float(at.get("wall_time_s_last_call", float("nan")))
+    line = f"  {steps} steps, {wall:.1f} s this call ({1e3 * wall / max(steps, 1):.0f} ms per step)"
+    if "stokes_solves" in at:
+        line += f", {int(at['stokes_solves'])} Stokes solves"
+    parts = {"Stokes products": at.get("stokes_s"), "mesh ALE": at.get("ale_s"), "local preconditioner":
+             at.get("cg_precond_s")}
+    shares = [f"{k} {100 * float(v) / wall:.0f}%" for k, v in parts.items() if v is not None and wall > 0]
+    return line + (f"; {', '.join(shares)} of the wall time" if shares else "")
 
 
 # --------------------------------------------------------------------------- bench
