@@ -4,7 +4,7 @@ be measured against the earlier ones in one session.
 
 Run by hand:
     python benchmarks/bench_harmonic_step.py [--level 4] [--delta 0.116] [--N 128] [--chi 268.2]
-        [--ale-iterations 100] [--ale-cap 0.05] [--rho per-l|probe] [--rho-refresh 50] [--rho-stale 4]
+        [--ale-iterations 100] [--ale-cap 0.05] [--ale-beta 0.1] [--rho per-l|probe] [--rho-refresh 50] [--rho-stale 4]
         [--set dt_strain=1 ...]
 
 The case: a quasi-uniform mesh of 10 4^level + 2 vertices with excess area Delta, `scheme: inextensible`,
@@ -54,8 +54,10 @@ def set_defaults(func, **values):
 
 def patch(a):
     """Set the solver's constants for this process: the ALE's LSQR iterations and step cap (AreaALE, and through
-    it ShapeALE and QualityALE) and the rho_l measurement."""
+    it ShapeALE and QualityALE), the angle rows' weight and the rho_l measurement."""
     set_defaults(MA.AreaALE.__init__, iter_lim=a.ale_iterations, max_step=a.ale_cap)
+    set_defaults(MA.QualityALE.__init__, beta=a.ale_beta)
+    set_defaults(MA.ShapeALE.__init__, beta=a.ale_beta)
     if a.rho == "per-l":
         TH.EXACT_L = 10**6
     set_defaults(TH.HarmonicTensionSolver.__init__, refresh=a.rho_refresh, stale=a.rho_stale)
@@ -70,6 +72,8 @@ def main():
     ap.add_argument("--ale-iterations", type=int, default=MA.ALE_ITERATIONS)
     ap.add_argument("--ale-cap", type=float, default=MA.AreaALE.__init__.__defaults__[2],
                     help="largest tangential ALE step per step, in h")
+    ap.add_argument("--ale-beta", type=float, default=MA.QualityALE.__init__.__defaults__[0],
+                    help="weight of the shape and quality ALEs' angle rows")
     ap.add_argument("--rho", choices=("probe", "per-l"), default="probe")
     ap.add_argument("--rho-refresh", type=int, default=TH.RHO_REFRESH)
     ap.add_argument("--rho-stale", type=int, default=TH.STALE_ITERATIONS)
