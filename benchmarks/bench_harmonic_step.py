@@ -3,16 +3,17 @@ constants set from the command line, so that the settings chosen in docs/solver.
 be measured against the earlier ones in one session.
 
 Run by hand:
-    python benchmarks/bench_harmonic_step.py [--level 4] [--delta 0.116] [--N 128] [--chi 268.2]
+    python benchmarks/bench_harmonic_step.py [--level 4 | --n-vertices 5762] [--delta 0.116] [--N 128] [--chi 268.2]
         [--ale-iterations 100] [--ale-cap 0.05] [--ale-beta 0.1] [--rho per-l|probe] [--rho-refresh 50] [--rho-stale 4]
         [--set dt_strain=1 ...]
 
-The case: a quasi-uniform mesh of 10 4^level + 2 vertices with excess area Delta, `scheme: inextensible`,
-`tension_space: harmonic`, `mesh_ale: area`, float32, two FFT threads, 1 + 1 strain units (override any run
-parameter with --set). --rho per-l is the earlier measurement (one Stokes solve per l, every 50 steps: --rho-refresh
-50 --rho-stale 1000000); probe the current one. Prints one JSON line: steps, Stokes solves, CG mean / max, rho_l
-refreshes, the ALE's seconds, wall time, l_*, l_peak, t_*, and bench_tension_space.py's measures (constrained and
-triangle strain, mesh quality, checkerboard), area and volume drift. Quote timings with what else ran.
+The case: a quasi-uniform mesh of 10 4^level + 2 vertices (or --n-vertices) with excess area Delta, `scheme:
+inextensible`, `tension_space: harmonic`, `mesh_ale: area`, float32, two FFT threads, 1 + 1 strain units (override
+any run parameter with --set). --rho per-l is the earlier measurement (one Stokes solve per l, every 50 steps:
+--rho-refresh 50 --rho-stale 1000000); probe the current one. Prints one JSON line: steps, Stokes solves, CG mean /
+max, rho_l refreshes, the ALE's seconds, wall time, l_*, l_peak, t_*, and bench_tension_space.py's measures
+(constrained and triangle strain, mesh quality, checkerboard), area and volume drift. Quote timings with what else
+ran.
 """
 
 import os
@@ -66,6 +67,7 @@ def patch(a):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--level", type=int, default=4)
+    ap.add_argument("--n-vertices", type=int, default=None, help="vertex count (default 10 4^level + 2)")
     ap.add_argument("--delta", type=float, default=0.116)
     ap.add_argument("--N", type=int, default=128)
     ap.add_argument("--chi", type=float, default=268.2)
@@ -84,7 +86,7 @@ def main():
     kw = dict(chi=a.chi, N=a.N, scheme="inextensible", tension_space="harmonic", mesh_ale="area", dtype="float32",
               stretch=1.0, t_end=1.0, output_every=0.02, fft_workers=2)
     kw.update(run_overrides(a.set))
-    mesh = M.make_vesicle("quasiuniform", n_vertices=10 * 4**a.level + 2, target_delta=a.delta)
+    mesh = M.make_vesicle("quasiuniform", n_vertices=a.n_vertices or 10 * 4**a.level + 2, target_delta=a.delta)
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()
         path = run(mesh, RunConfig(**kw), a.out or d, progress=False)
