@@ -391,7 +391,8 @@ class Inextensible(Integrator):
                 # one for the warm-start velocity, one per iteration (+ the harmonic space's rho_l measurements)
                 "stokes_solves": int(it.size + it.sum() + getattr(self.tension, "extra_solves", 0)
                                      + self.bending_solves),
-                # this call's wall time in the products M F (the step's and the tension's, not the bending limit's)
+                # this call's wall time in the products M F through self.mobility: the step's, the tension's and
+                # the thermal drift's (counted in thermal_stokes_solves), not the bending limit's
                 "stokes_s": float(self.mobility.seconds),
                 "bending_solves": int(self.bending_solves), "dt_bending_min_tau": float(self.dt_bending_min),
                 "dt_bending_last_tau": float(self.dt_bending_last),
