@@ -1,7 +1,7 @@
 """CG iterations of the tension solve over the first steps of a run, and the mesh they act on.
 
 Why does the elongated vesicle (Delta = 0.997) need far more CG iterations per step at 256^3 than at 128^3
-(docs/solver.md)? This runs the first ``--steps`` steps of a case with the inextensible scheme and prints, per
+(docs/history/solver.md)? This runs the first ``--steps`` steps of a case with the inextensible scheme and prints, per
 step, the step length, the CG iterations and the warm-start residual, plus the quality of the starting mesh
 (aspect ratio, shortest edge over h). Run by hand; quote timings with what else ran on the machine:
 

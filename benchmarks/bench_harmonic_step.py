@@ -1,5 +1,5 @@
 """The harmonic tension's per-step costs and the step's linearisation error on one case, with the solver's
-constants set from the command line, so that the settings chosen in docs/solver.md ("Fewer solves per step") can
+constants set from the command line, so that the settings chosen in docs/history/solver.md ("Fewer solves per step") can
 be measured against the earlier ones in one session.
 
 Run by hand:

@@ -9,7 +9,7 @@ Cases (float32 grids as the workflow's; the numbers differ from run to run only 
   a 2379-vertex quasi-uniform mesh, harmonic tension with the area ALE), 1 + 1 strain units, kT/kappa = 0.0405,
   noise seed 0;
 * ``equilibrium``: a fixed-tension quasi-sphere (N = 32, 642 vertices at Delta = 0.04, tension_fixed 600, Lambda
-  1e8, dt = 5e-4 tau, 0.5 tau; docs/thermal.md section 7's setup), float64.
+  1e8, dt = 5e-4 tau, 0.5 tau; docs/history/thermal.md section 7's setup), float64.
 
 Rows: the run without noise, then with noise for each setting of cg_precond (compliance: the rho_l diagonal; secant:
 the BFGS model, tension_secant.py), noise_drift_every (1: the Ito drift's random finite difference every step; 0:

@@ -71,7 +71,7 @@ def main(N, n_vertices):
           f"{G.nnz / n:.0f} overlapping vertices per vertex")
     for name, pre in (("compliance", None), ("local", local), ("kernel overlap", KernelOverlap(G, c, topo))):
         if name == "local" and pre is None:
-            print(f"{name:>15}: not run above N = 128 (it stalls there, docs/solver.md)")
+            print(f"{name:>15}: not run above N = 128 (it stalls there, docs/history/solver.md)")
             continue
         ts = TensionSolver(mob, topo, geo.area.copy(), LAMBDA, tol=1e-6, maxiter=2000, local=pre)
         t = time.perf_counter()

@@ -7,7 +7,7 @@ Each file is a spectra dataset (``vesicle decompose``) or a PA solution (``vesic
 ln(Delta_l(b) / Delta_l(a)) / (b - a) per l, in units of gamma_dot (the frames nearest a and b), and the mean
 tension over the frames inside the window. A linear mode's rate is set by the tension and the bending at its l;
 two rungs whose rates agree in the first window and part later differ in the nonlinear stage, not in the linear
-operator (docs/solver.md, "Wrinkling ladders with the sharp coupling").
+operator (docs/history/solver.md, "Wrinkling ladders with the sharp coupling").
 """
 
 from __future__ import annotations

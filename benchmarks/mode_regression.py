@@ -3,7 +3,7 @@ relaxation of the same discretisation, started from the run's own frames.
 
     python benchmarks/mode_regression.py TRAJECTORY.nc [--starts 4] [--span 0.006] [--l-max 16] > numbers.md
 
-TRAJECTORY is a noisy run without flow at a fixed tension (``tension_fixed``, chi = 0, kT > 0; docs/thermal.md
+TRAJECTORY is a noisy run without flow at a fixed tension (``tension_fixed``, chi = 0, kT > 0; docs/history/thermal.md
 section 7). ``--starts`` frames from its second half are each taken as the start of a run with the trajectory's own
 parameters but kT = 0 and the explicit midpoint step (second order, ``noise_scheme: midpoint``; forward Euler's
 decay is itself O(a dt) fast), frames every step, for ``--span`` tau. In the linear regime the mean deterministic

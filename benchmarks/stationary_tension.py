@@ -23,7 +23,7 @@ Columns, per (Delta, L):
 Per Delta with two or more boxes: sigma_inf from each pair of neighbouring boxes by validation.image_extrapolation
 (sigma(L) = sigma_inf + c / L^3, periodic images), against the larger box's PA values; with three boxes the two
 pairs' agreement tests that law.
-The study in docs/solver.md ("The stationary tension against the PA") ran
+The study in docs/history/solver.md ("The stationary tension against the PA") ran
     python benchmarks/stationary_tension.py --deltas 0.03 0.06 0.116 0.2 --L 5 7.03125 9.375
     python benchmarks/stationary_tension.py --deltas 0.03 0.06 0.116 0.2 --L 5 --set Lambda=1e8 --set cg_maxiter=1000
     python benchmarks/stationary_tension.py --deltas 0.116 0.03 0.2 --L 5 --h 0.0390625 --n-vertices 2562

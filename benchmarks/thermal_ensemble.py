@@ -6,7 +6,7 @@ discretisation, the stochastic PA and the deterministic PA on the same grid, and
 
 The IBM numbers come from the catalog through ``open_sweep`` (the ensemble stacked along ``noise_seed``, the
 deterministic runs selected by kT = 0). The PA rows use the runs' grid (h = L/N, their kernel and coupling, through
-theory.grid_damping) and the spectra's l_max, so that eq. (31) sums over the same modes (docs/thermal.md,
+theory.grid_damping) and the spectra's l_max, so that eq. (31) sums over the same modes (docs/history/thermal.md,
 section 6: under noise l_* depends on l_max). The cost columns read each trajectory's attributes: wall time, steps,
 Stokes solves of the main tension solve and of the noise (field and drift).
 """

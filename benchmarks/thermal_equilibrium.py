@@ -2,7 +2,7 @@
 
     python benchmarks/thermal_equilibrium.py TRAJECTORY.nc [--burn-in 0.2] [--l-max L] > numbers.md
 
-Make the run with ``vesicle run`` (chi: 0, stretch: 0, scheme: inextensible, kT > 0; docs/thermal.md section 6
+Make the run with ``vesicle run`` (chi: 0, stretch: 0, scheme: inextensible, kT > 0; docs/history/thermal.md section 6
 gives the configuration used). Every frame after the burn-in fraction is decomposed (``harmonics.decompose``,
 the pn rule, the nominal Delta of the run) into u_lm up to ``--l-max`` (default: the mesh's resolvable l, capped
 at 16). Printed per l:

@@ -1,6 +1,6 @@
 """The files other tools open: every dataset kind the workflow writes has CF units that UDUNITS parses (cf-units,
 the UDUNITS-2 library) and states its scales; cf-xarray finds its CF roles; meshes and trajectories are UGRID 1.0
-2D meshes that xugrid opens (docs/datasets.md)."""
+2D meshes that xugrid opens (docs/reference/datasets.md)."""
 
 import warnings
 
@@ -140,14 +140,14 @@ def test_cf_unit_attrs_is_idempotent_and_leaves_cf_units_alone():
 
 
 def test_the_per_frame_scalars_are_those_docs_datasets_lists(files):
-    """docs/datasets.md's table of per-frame scalars names exactly what a trajectory stores along time (one home:
+    """docs/reference/datasets.md's table of per-frame scalars names exactly what a trajectory stores along time (one home:
     TrajectoryWriter.FRAME_VARS, checked against the doc and a written file)."""
     import re
     from pathlib import Path
 
     from vesicle_core.solver.trajectory import TrajectoryWriter
 
-    doc = (Path(__file__).resolve().parents[2] / "docs" / "datasets.md").read_text()
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference" / "datasets.md").read_text()
     section = doc.split("### Per-frame scalars of a trajectory")[1].split("\n#")[0]
     listed = {name for row in section.splitlines() if row.startswith("| `")
               for name in re.findall(r"`([a-z_0-9]+)`", row.split("|")[1])}

@@ -392,7 +392,7 @@ def test_tension_l_max_beyond_the_resolvable_l_is_refused():
 def test_harmonic_tension_relaxes_a_mode_as_the_grid_allows(l):
     """r = 1 + eps Y_l0 relaxes under the harmonic tension at Gamma_l (eq. 11) times the grid's own damping, which a
     clean interface measures on the same grid (the two theories differ by <= 2.2% from l = 3): within 5%. (The
-    triangle tension is 10-19% slower there, docs/solver.md.)"""
+    triangle tension is 10-19% slower there, docs/history/solver.md.)"""
     from vesicle_core.validation import relaxation as Rx
 
     N, nv = 64, 642
@@ -433,7 +433,7 @@ def test_failed_harmonic_tension_solve_stops_the_run(tmp_path):
 def test_harmonic_l_star_does_not_move_with_the_mesh_at_a_fixed_grid(tmp_path):
     """The S = 2224 case at N = 64 from the PA's thermal seed on 642 and 2562 vertices (edge ~2h and ~h): the harmonic
     tension's l_* moves by < 5% and t_* not at all (measured +1.7%; the triangle tension's moves by +47%, t_* by
-    -0.04, docs/solver.md). ~30 s."""
+    -0.04, docs/history/solver.md). ~30 s."""
     from vesicle_core.analysis.spectra import spectra_from_trajectory
 
     out = {}

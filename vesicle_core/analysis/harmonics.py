@@ -46,7 +46,7 @@ Quadrature (documented choices; measured in tests/analysis/test_harmonics.py)
   preconditioned sweeps, 3-4 of them): the same ellipsoid's floor falls to 2e-8 and 6e-8, and its own l = 6-10
   content matches a 40962-vertex icosphere where the quadrature misses l = 8 by 18% (tests). It costs ~4x the
   quadrature. At t_* the wrinkles dwarf the floor: l_* of the S = 2224 run at 256^3 (10242 vertices) is
-  26.17 by quadrature and 26.18 by least squares (docs/solver.md, "Wrinkling ladders with the sharp coupling").
+  26.17 by quadrature and 26.18 by least squares (docs/history/solver.md, "Wrinkling ladders with the sharp coupling").
 
 The fitted ellipsoid, the wrinkle amplitude A_p and one snapshot's whole analysis: :mod:`vesicle_core.analysis.shape`.
 """
@@ -334,7 +334,7 @@ def resolved_field(vertices, faces, values, l_max=None, center=None, R=None) -> 
     (:func:`resolvable_l_max`), four edges per wavelength. For the inextensible scheme's per-triangle tension this
     is the part the grid resolves: most of its variance (75-93% in the S = 2224 runs at N = 64 and 128) lies
     beyond the resolvable l, in nearly force-free patterns that alternate between neighbouring triangles
-    (docs/solver.md, "Tension noise"); the vertex average keeps part of them. The surface must be star-shaped
+    (docs/history/solver.md, "Tension noise"); the vertex average keeps part of them. The surface must be star-shaped
     about the centre (default: the volume centroid).
     """
     v, f = _as_mesh(vertices, faces)

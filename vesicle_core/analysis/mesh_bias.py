@@ -1,5 +1,5 @@
 """Mesh bias: how strongly a wrinkle pattern follows the mesh (the icosphere's twelve five-fold defects and the
-icosahedral degrees l = 6, 10, 12) rather than the membrane; docs/mesh_bias.md.
+icosahedral degrees l = 6, 10, 12) rather than the membrane; docs/explanation/mesh_bias.md.
 """
 
 from __future__ import annotations

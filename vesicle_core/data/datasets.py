@@ -7,7 +7,7 @@ Trajectory format (written by the solver, ``trajectory.nc``)
              face_tension (time, n_face) [kappa/R^2]; tension (time) [kappa/R^2]; area, volume, bending_energy,
              tension_energy, area_drift, volume_drift (time); since the format became UGRID (a finished run's
              file): the mesh topology ``mesh`` and node_lon, node_lat (n_node), the vertex directions of the
-             first frame seen from its centroid, the mesh's node coordinates (docs/datasets.md)
+             first frame seen from its centroid, the mesh's node coordinates (docs/reference/datasets.md)
     units    in the file, a solver unit X is written as units "1" with nondimensional_units "X"
              (:func:`vesicle_core.model.units.cf_unit_attrs`); the brackets above give X
     attrs    chi, S, delta (meshed excess area), Re, N, L, dt, Lambda, mesh_family, mesh_level, backend, ...;

@@ -121,7 +121,7 @@ SCHEMES = ("explicit", "projection", "inextensible")
 # checkpoint took 4.8 ms to write (median of 5, two 256^3 runs on the machine).
 CHECKPOINT_WALL_S = 600.0
 _KERNELS = tuple(KERNELS)
-# the sharp coupling's floor, chosen from the resolution table alone (docs/solver.md, "Sharpened coupling")
+# the sharp coupling's floor, chosen from the resolution table alone (docs/history/solver.md, "Sharpened coupling")
 SHARP_FLOOR = 0.01
 
 #: parameters of one IBM run (``vesicle run``, ``RunConfig``), in solver units (R, kappa, tau = mu R^3 / kappa)
@@ -185,7 +185,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "fluid-membrane coupling. kernel: spread and interpolate with the kernel (eqs. 16, 28; the paper's); "
         "sharp: also divide the spread force's spectrum by the kernel's squared Fourier transform, floored at "
         "sharp_floor (window deconvolution: resolves ~2x higher l per grid node; needs a mesh edge of ~h, "
-        "docs/solver.md)",
+        "docs/history/solver.md)",
         choices=("kernel", "sharp"),
     ),
     Parameter(
@@ -193,7 +193,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         SHARP_FLOOR,
         "float",
         "sharp coupling: floor on the kernel's squared Fourier transform (the largest amplification is "
-        "1/sharp_floor); chosen by the resolution table (docs/solver.md)",
+        "1/sharp_floor); chosen by the resolution table (docs/history/solver.md)",
         "",
         1e-4,
         1.0,
@@ -204,7 +204,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "time integrator (integrators.py). explicit: the paper's area penalty alone; "
         "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
-        "tension per triangle solved each step from the local area constraint, adaptive steps (docs/solver.md)",
+        "tension per triangle solved each step from the local area constraint, adaptive steps (docs/history/solver.md)",
         choices=SCHEMES,
     ),
     Parameter(
@@ -303,7 +303,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         1.0e-5,
         "float",
         "inextensible: CG tolerance, rms area strain of the residual; the next "
-        "step corrects it, so it does not accumulate (docs/solver.md)",
+        "step corrects it, so it does not accumulate (docs/history/solver.md)",
         "",
         0.0,
         1e-2,
@@ -317,7 +317,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "inextensible: CG preconditioner. local adds the IBM's measured "
         "near-field mobility (LU-factorised every projection_refresh steps); it needs a mesh edge of ~2h and "
-        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/solver.md); at 256^3 it halves the "
+        "pays up to 128^3 (there 0.86x the projection scheme's time, docs/history/solver.md); at 256^3 it halves the "
         "elongated vesicle's iterations (Delta ~ 1: 2.1x faster through the late stretch) but slows the "
         "quasi-spherical one (no fewer warm-step iterations): compliance there. secant (tension_space harmonic): "
         "BFGS updates of the measured diagonal from every CG product (tension_secant.py; 1.8-3.6x fewer CG "
@@ -331,7 +331,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "inextensible: the tension's space. triangle: one tension per triangle, every triangle's area held "
         "(near-null checkerboard modes); harmonic: a Galerkin tension in real spherical harmonics up to "
         "tension_l_max on the reference mesh's sphere coordinates, the projection of the area change on that "
-        "space held, CG preconditioned by the measured area rate per l (docs/solver.md, A harmonic tension)",
+        "space held, CG preconditioned by the measured area rate per l (docs/history/solver.md, A harmonic tension)",
         choices=("triangle", "harmonic"),
     ),
     Parameter(
@@ -430,7 +430,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     Parameter("noise_drift_every", 1, "int", "thermal noise: steps between the Ito drift's random finite differences "
               "(two constrained solves each), applied with that weight; 10 heats the shortest modes by 3-15% at "
               "N = 32; 0: no drift (paired runs at N = 32, either coupling: spectrum and centroid D within 1.1%; 3x "
-              "fewer solves; docs/thermal.md)", "", 0, 1000),
+              "fewer solves; docs/history/thermal.md)", "", 0, 1000),
     Parameter(
         "store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, node_uz)"
     ),

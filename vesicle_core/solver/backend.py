@@ -10,7 +10,7 @@ the library behind those two operations:
   0.77 s (pyFFTW, FFTW_MEASURE plan) against 2.2 s (scipy) and 2.7 s (pyFFTW, FFTW_ESTIMATE).
   ``fft_workers`` defaults to 1, because a sweep runs one job per core; a single run on an idle 2-core
   machine should pass 2: one steady Stokes solve then takes 0.71x (128^3) and 0.65x (256^3) as long
-  (benchmarks/bench_fft_threads.py, docs/solver.md).
+  (benchmarks/bench_fft_threads.py, docs/history/solver.md).
 * CPU, scatter-add: ``np.add.at`` into an existing buffer. With NumPy 2.x it costs ~0.6 ms for
   2562 x 64 entries into a 128^3 grid, whereas ``out += np.bincount(idx, vals, minlength=out.size)``
   costs ~2.2 ms because it builds and adds a full-size temporary. ``bincount`` is offered for the

@@ -43,7 +43,7 @@ Step
 ----
 ``euler`` (Euler-Maruyama) gives every step its own white noise z_n. Its stationary distribution is off by O(dt): a
 linear mode relaxing at rate a has the variance (kT / k) / (1 - a dt / 2), so the fast modes of a tense vesicle
-(a ~ 300-450 / tau at sigma = 600 on a 642-vertex mesh at N = 32) are 7-13% too large at dt = 5e-4 tau (docs/thermal.md,
+(a ~ 300-450 / tau at sigma = 600 on a 642-vertex mesh at N = 32) are 7-13% too large at dt = 5e-4 tau (docs/history/thermal.md,
 section 7). ``lm`` gives step n the mean (z_n + z_{n+1}) / 2 with the same amplitude (Leimkuhler & Matthews, Appl.
 Math. Res. Express 2013; Leimkuhler, Matthews & Stoltz, IMA J. Numer. Anal. 36, 13 (2016)): the sum of the steps'
 noise is the same Brownian path up to the end terms, and for x_{n+1} = (1 - a dt) x_n + sqrt(2 D dt) (z_n + z_{n+1})
@@ -61,7 +61,7 @@ Drift
 A configuration-dependent mobility adds the drift kT div_X M to the Ito equation (Delong et al., J. Chem. Phys.
 140, 134110 (2014)). :func:`mobility_divergence` measures it by central differences (6 n solves; a reference);
 :func:`rfd_drift` is their random finite difference (two solves, unbiased in the mean), the form an integrator
-uses. docs/thermal.md reports the drift's size for this kernel and grid: it does not vanish on a membrane.
+uses. docs/history/thermal.md reports the drift's size for this kernel and grid: it does not vanish on a membrane.
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ NOISE_SCHEMES = ("euler", "lm", "midpoint")
 
 #: noise on markers closer than this many grid spacings is warned of: at a fixed tension the 2562-vertex mesh at N = 32
 #: (edge 0.48 h) grew its area by 1.6% over 2.9 tau and stopped on a CG failure, where 642 vertices (edge ~h) held it
-#: to 3e-4 (docs/thermal.md, section 7); the grid neither moves nor damps such markers apart
+#: to 3e-4 (docs/history/thermal.md, section 7); the grid neither moves nor damps such markers apart
 NOISE_EDGE_MIN = 0.5
 
 
@@ -86,7 +86,7 @@ def noise_mesh_warning(edge_over_h):
     if edge_over_h >= NOISE_EDGE_MIN:
         return None
     return (f"kT > 0 with a mean mesh edge of {edge_over_h:.2f} h (< {NOISE_EDGE_MIN} h): at 0.48 h a fixed-tension "
-            "run's area grew by 1.6% in 2.9 tau and its tension solve then failed (docs/thermal.md, section 7); use a "
+            "run's area grew by 1.6% in 2.9 tau and its tension solve then failed (docs/history/thermal.md, section 7); use a "
             "mesh of edge ~h or a finer grid")
 
 
@@ -301,7 +301,7 @@ class ThermalVelocity:
         # time is kept and the noise's cost falls from two constrained solves per step to 2 / drift_every; the
         # displacement it adds scatters by O(dt) per application, against the noise's O(sqrt(dt)); exact in the mean
         # for a fixed dt, to first order for an adaptive step that changes slowly. 0 switches the drift off: a paired
-        # run at N = 32 (same noise) moved neither the spectrum nor the centroid's D (docs/thermal.md section 7)
+        # run at N = 32 (same noise) moved neither the spectrum nor the centroid's D (docs/history/thermal.md section 7)
         self.drift_every = int(check_range("drift_every", drift_every, 0, None))
         self.constrained = constrained
         self.kT = self.noise.kT

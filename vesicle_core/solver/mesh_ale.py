@@ -3,7 +3,7 @@
 The harmonic tension (:mod:`vesicle_core.solver.tension_harmonic`) holds only the projection of the local area
 change on its space, so the vertices are free to slide on the mesh scale. These classes add a tangential vertex
 displacement that changes the shape only at second order and keeps the mesh carrying the strain: ``AreaALE`` holds
-the triangle areas, ``ShapeALE`` also their angles (docs/solver.md, "An ALE that keeps the triangles' shape").
+the triangle areas, ``ShapeALE`` also their angles (docs/history/solver.md, "An ALE that keeps the triangles' shape").
 """
 
 from __future__ import annotations
@@ -128,7 +128,7 @@ class ShapeALE(AreaALE):
     size, so these rows leave the area pattern to the area rows (a dilation changes no share). Holding every
     triangle's area leaves the tangential motion almost no freedom (F = 2V - 4 area rows on 2V unknowns), so under a
     shear of the surface the triangles keep their areas and lose their shape: the elongated vesicle's collapse
-    (docs/solver.md) came from such a patch, whose stiffest bending mode set a step of 1e-6 tau. The shape rows are
+    (docs/history/solver.md) came from such a patch, whose stiffest bending mode set a step of 1e-6 tau. The shape rows are
     a Gauss-Newton step towards the reference angles (zero at the reference mesh, so no steady drift)."""
 
     def __init__(self, space: HarmonicSpace, h, X0, faces, beta=0.1, **kw):
@@ -215,7 +215,7 @@ Q_HI, Q_LO = 0.9, 0.6
 class QualityALE(ShapeALE):
     """AreaALE with ShapeALE's angle rows only where a triangle has lost its shape (``mesh_ale: quality``).
 
-    Neither ALE alone works on every rung of the elongated vesicle (docs/solver.md): the area rows alone let a
+    Neither ALE alone works on every rung of the elongated vesicle (docs/history/solver.md): the area rows alone let a
     sheared patch degenerate into slivers, whose stiff bending modes collapse the step; the angle rows on every
     triangle fight the benign global stretch of an elongating shape, and the lipid they carry lets the triangle
     sizes drift by up to 100% against A0. Here triangle t's angle rows get the weight beta x ramp_t,

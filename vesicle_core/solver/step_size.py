@@ -65,7 +65,7 @@ def stiffest_mode(solver: IBMSolver, X, v0=None, max_iter=40, rtol=1e-3, seed=0,
     power iteration converges slowly, and on the float32 grid its velocity differences are noisy. On six frames of a
     128^3 run of the default discretisation it came 4-9% below the float64 reference when warm (rtol 1e-2, 4-34
     solves) and -9% to +10% from it when cold (20-60 solves); Arnoldi came within 0.5% in 3-12 solves warm (3.5%
-    across a 180-step gap) and 19-23 cold (benchmarks/bench_step_size.py; docs/solver.md, "The bending limit's
+    across a 180-step gap) and 19-23 cold (benchmarks/bench_step_size.py; docs/history/solver.md, "The bending limit's
     measurement").
 
     ``v0``: a start vector (the last measurement's, so that a re-measurement on a slowly changing shape needs a

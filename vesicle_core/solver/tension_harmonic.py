@@ -1,7 +1,7 @@
 """A Galerkin tension in real spherical harmonics: the inextensible scheme's ``tension_space: harmonic``.
 
 The triangle tension (:mod:`vesicle_core.solver.tension`) carries one unknown per triangle. That space has near-null
-modes, triangle patterns that exert almost no force (docs/solver.md, "Tension noise"), which hold most of its
+modes, triangle patterns that exert almost no force (docs/history/solver.md, "Tension noise"), which hold most of its
 variance (a checkerboard) and slow its CG. Here the tension is a smooth field instead,
 
     sigma(x) = sum_k c_k Y_k(theta(x), phi(x)),    k = (l, m), 0 <= l <= l_t, real Y_lm,
@@ -20,7 +20,7 @@ Fixed-tension ensemble (run parameter ``tension_fixed``, ``hold_area=False``): t
 unknown but the prescribed uniform tension, so the total area is free while the l >= 1 projection of the local area
 change is still held. The CG then runs on the l >= 1 coefficients (the operator and the preconditioner restricted by
 the mask). At a fixed area the uniform tension is a Lagrange multiplier, and its mean over a noisy run is not the
-tension the shape modes feel (docs/thermal.md, section 7); at a fixed tension the equilibrium spectrum has a known
+tension the shape modes feel (docs/history/thermal.md, section 7); at a fixed tension the equilibrium spectrum has a known
 tension to be compared with.
 
 Preconditioner ("diagonal in l", the quasi-spherical vesicle's own operator): on a sphere the area rate per unit
@@ -30,7 +30,7 @@ by the higher l, read off block by block; see ``measure_rho``), so it carries th
 shape's l = 0 response (zero on a sphere: a uniform tension moves nothing there) without a model.
 P = S^(1/2) G S^(1/2), S = diag(dt rho_l + 1/Lambda), applied with the Cholesky factor of G. rho_l is re-measured
 every ``refresh`` solves, and early when a warm solve needed ``stale`` or more iterations (the shape has moved away
-from the one measured). Measured (docs/solver.md, "Fewer solves per step"): 4 solves a measurement instead of
+from the one measured). Measured (docs/history/solver.md, "Fewer solves per step"): 4 solves a measurement instead of
 l_t + 1, 547 Stokes solves in the S = 2224 run at 128^3 against 635, 649 against 856 at 256^3.
 Prior art: ves3d's ``DiagonalSpectral`` tension preconditioner (Malhotra, Rahimian, Zorin & Biros), a diagonal
 in spherical harmonics.
@@ -104,7 +104,7 @@ class HarmonicSpace:
         if check and self.l_max > l_res:
             raise ConfigError(f"tension_l_max = {self.l_max} exceeds the mesh's resolvable l {l_res} (pi R / mean "
                               f"edge): the inf-sup constant collapses there (0.48 against 1.95 at 162 vertices, "
-                              f"docs/solver.md)")
+                              f"docs/history/solver.md)")
         c0 = volume_centroid(X0, faces)
         u = X0 - c0
         u /= np.linalg.norm(u, axis=1, keepdims=True)

@@ -8,7 +8,7 @@ preconditioned by the quasi-sphere's diagonal in l, rho_l. That diagonal is what
 (1 iteration, median): its residual is smooth and predicted by the last two steps. A thermal step's is not: the
 noise velocity's area rate is new every step and white in the space, so every eigenvalue cluster of the
 preconditioned operator shows up in the residual, and CG needed 4.3 iterations per step instead of 1.0 at 64^3
-(docs/thermal.md, section 8). The operator is small and dense, though, and every CG iteration already computes
+(docs/history/thermal.md, section 8). The operator is small and dense, though, and every CG iteration already computes
 one exact product R p (one Stokes solve). Those products are fed into a quasi-Newton model of R:
 
     R_hat <- R_hat + y y^T / (y . p) - (R_hat p)(R_hat p)^T / (p . R_hat p),      y = R p,

@@ -32,7 +32,7 @@ def image_extrapolation(L_small, y_small, L_large, y_large) -> float:
     """y at L -> infinity from two boxes with y(L) = y_inf + c / L^3.
 
     The periodic images of a force-free vesicle interact through its stresslet, whose image sum scales with the
-    volume fraction ~ 1/L^3 (the same law as the l = 2 relaxation rate's box correction in docs/solver.md).
+    volume fraction ~ 1/L^3 (the same law as the l = 2 relaxation rate's box correction in docs/history/solver.md).
     """
     a, b = L_small**-3, L_large**-3
     if not abs(a - b) > 0:

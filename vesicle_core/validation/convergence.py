@@ -1,7 +1,7 @@
 """Resolution ladder (docs/validation.md): l_* against the grid spacing h = L/N, extrapolated to h -> 0.
 
 The rule below was fixed before any comparison with the paper's numbers, from the mode-relaxation measurement
-alone (docs/solver.md): the IBM relaxes (and grows) a mode l at exp(-(l h / a)^2) of its true rate, so for
+alone (docs/history/solver.md): the IBM relaxes (and grows) a mode l at exp(-(l h / a)^2) of its true rate, so for
 resolved modes the leading error is ~ (l h / a)^2 and the wrinkle number converges like h^2.
 
 * :func:`extrapolate` fits y = y_0 + c h^p by least squares over the ``n_finest`` finest rungs (default 3) and

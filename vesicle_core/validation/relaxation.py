@@ -163,7 +163,7 @@ def l_res(ratios: dict, tol=0.05) -> int:
 
 def box_factor_l2(N, n_vertices, L=5.0, **kw) -> float:
     """r(L) / r(inf) of mode l = 2, from boxes L and ~7 R at the same h (r = r_inf - c / L^3): the periodic images slow
-    l = 2 by ~5% at L = 5 R, and modes l >= 3 move by < 0.1% (docs/solver.md, "Kernels and resolution")."""
+    l = 2 by ~5% at L = 5 R, and modes l >= 3 move by < 0.1% (docs/history/solver.md, "Kernels and resolution")."""
     h = L / N
     N7 = 2 * round(7.0 / h / 2)
     L7 = N7 * h
@@ -184,7 +184,7 @@ def resolution_table(Ns, ls, n_vertices_of=None, membrane="clean", L=5.0, tol=0.
     l h > ``lh_max`` are skipped (far past any kernel's resolution). ``progress``: called with a line per grid.
     ``cg_tol``, ``tension_space``: the tension solve's tolerance and space (inextensible membrane). ``eps``: the
     mode's amplitude; the constrained rates of l >~ 15 need 1e-4 to be linear (eps l^2 is the curvature's relative
-    perturbation: at 1e-3 the l = 20 rate comes out 9% slow, docs/solver.md).
+    perturbation: at 1e-3 the l = 20 rate comes out 9% slow, docs/history/solver.md).
     """
     kw = {"kernel": kernel, "coupling": coupling, "sharp_floor": sharp_floor, "cg_tol": cg_tol,
           "tension_space": tension_space, "eps": eps}
