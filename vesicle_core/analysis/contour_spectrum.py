@@ -75,12 +75,14 @@ def radius_on_rays(uv, center, theta) -> tuple[np.ndarray, bool]:
     with np.errstate(divide="ignore", invalid="ignore"):
         s = _cross2(p[None, :, :], q[None, :, :]) / den
         t = _cross2(p[None, :, :], d[:, None, :]) / den
-    hit = (t >= 0.0) & (t < 1.0) & (s > 0.0) & np.isfinite(s)
-    n_hits = hit.sum(axis=1)
-    if np.any(n_hits == 0):
+    # a ray through a polygon vertex meets both its segments at t = 1 and t = 0, each up to round-off: accept a
+    # little overlap, and count crossings apart by more than round-off only
+    hit = (t >= -1e-9) & (t <= 1.0 + 1e-9) & (s > 0.0) & np.isfinite(s)
+    if np.any(~hit.any(axis=1)):
         raise ConfigError("contour spectrum: the centre lies outside the contour (some rays never cross it)")
     r = np.where(hit, s, -np.inf).max(axis=1)
-    return r, bool(np.all(n_hits == 1))
+    inner = hit & (s < r[:, None] * (1.0 - 1e-7))
+    return r, not bool(inner.any())
 
 
 def ellipsoid_section_radius(where: Plane, ellipsoid, center_uv, theta) -> np.ndarray:
