@@ -59,7 +59,7 @@ class ContourSpectrum:
     star_shaped: bool
 
 
-def _cross2(a, b):
+def _perp_dot(a, b):
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
@@ -71,10 +71,10 @@ def radius_on_rays(uv, center, theta) -> tuple[np.ndarray, bool]:
     p = np.asarray(uv, float) - np.asarray(center, float)
     q = np.roll(p, -1, axis=0) - p
     d = np.stack([np.cos(theta), np.sin(theta)], axis=1)
-    den = _cross2(d[:, None, :], q[None, :, :])  # (n_theta, n_seg)
+    den = _perp_dot(d[:, None, :], q[None, :, :])  # (n_theta, n_seg)
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = _cross2(p[None, :, :], q[None, :, :]) / den
-        t = _cross2(p[None, :, :], d[:, None, :]) / den
+        s = _perp_dot(p[None, :, :], q[None, :, :]) / den
+        t = _perp_dot(p[None, :, :], d[:, None, :]) / den
     # a ray through a polygon vertex meets both its segments at t = 1 and t = 0, each up to round-off: accept a
     # little overlap, and count crossings apart by more than round-off only
     hit = (t >= -1e-9) & (t <= 1.0 + 1e-9) & (s > 0.0) & np.isfinite(s)
