@@ -129,7 +129,7 @@ def _membrane_samples(v, f, where, sigma_z, spacing):
     return where.to_plane(pts.reshape(-1, 3)), w.ravel()
 
 
-def render(vertices, faces, where: Plane, optics: Optics = Optics(), *, length_um: float, center_uv=(0.0, 0.0),
+def render(vertices, faces, where: Plane, optics: Optics | None = None, *, length_um: float, center_uv=(0.0, 0.0),
            half_width: float, contrast: float = 0.5) -> Image:
     """The image of the membrane (vertices in mesh units, ``length_um`` micrometres per unit) in the focal plane
     ``where``, over the square of ``half_width`` (mesh units) about ``center_uv``."""
@@ -138,6 +138,7 @@ def render(vertices, faces, where: Plane, optics: Optics = Optics(), *, length_u
     check_range("contrast", contrast, 0.0, 1.0, lo_open=True)
     from scipy.ndimage import gaussian_filter
 
+    optics = Optics() if optics is None else optics
     pixel = optics.pixel_um / length_um
     sigma_z = optics.depth_of_field_um / (2.0 * math.sqrt(2.0 * math.log(2.0))) / length_um
     n_px = 2 * int(math.ceil(half_width / pixel)) + 1

@@ -1,12 +1,12 @@
-"""The ``vesicle`` command: mesh | run | decompose | theory | fit | figures | catalog | report | bench | params.
+"""The ``vesicle`` command: mesh|run|decompose|theory|fit|microscope|figures|catalog|report|bench|params.
 
 Every step of the Snakemake workflow calls one of these subcommands, so each can also be run by
 hand. Bad arguments exit with status 2 and a message that names the argument and its allowed range.
 
 The subcommands live by purpose: :mod:`vesicle_core.cli.sim` (mesh, run, bench, params),
-:mod:`vesicle_core.cli.analysis` (decompose, theory, fit) and :mod:`vesicle_core.cli.post` (figures, catalog,
-report); the argument converters are in :mod:`vesicle_core.cli.args`. This module builds the parser and maps
-errors to exit statuses.
+:mod:`vesicle_core.cli.analysis` (decompose, theory, fit), :mod:`vesicle_core.cli.microscopy` (microscope) and
+:mod:`vesicle_core.cli.post` (figures, catalog, report); the argument converters are in
+:mod:`vesicle_core.cli.args`. This module builds the parser and maps errors to exit statuses.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import sys
 
 from ..errors import NumericalInstability, VesicleError
 from . import analysis as cli_analysis
+from . import microscopy as cli_microscopy
 from . import post as cli_post
 from . import sim as cli_sim
 
@@ -30,6 +31,7 @@ class _Parser(argparse.ArgumentParser):
 # in this order in ``vesicle --help``
 _ADDERS = [
     cli_sim.add_mesh, cli_sim.add_run, cli_analysis.add_decompose, cli_analysis.add_theory, cli_analysis.add_fit,
+    cli_microscopy.add_microscope,
     cli_post.add_report, cli_sim.add_bench, cli_sim.add_params, cli_post.add_figures, cli_post.add_catalog,
 ]
 

@@ -1,0 +1,86 @@
+"""``vesicle microscope`` end to end on a synthetic trajectory whose outline is known (analysis/microscope.py)."""
+
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from vesicle_core.analysis.microscope import default_radius_um, microscope_from_trajectory
+from vesicle_core.cli import main
+from vesicle_core.geometry import ylm as Yl
+from vesicle_core.geometry.mesh import icosphere
+
+L = 10
+
+
+def _trajectory(times=(-0.5, 0.0, 0.5, 1.0), eps=(0.0, 0.0, 0.01, 0.02)):
+    """A sphere of level 4 whose sectoral Y_10,10 wrinkle grows: the outline in z = 0 is 1 + eps cos(10 phi)."""
+    v, f = icosphere(4)
+    y = Yl.ylm(L, np.arccos(v[:, 2]), np.arctan2(v[:, 1], v[:, 0]))[L, 2 * L].real
+    y /= np.abs(y).max()
+    X = np.array([v * (1 + e * y)[:, None] for e in eps])
+    nt, nf = len(times), len(f)
+    zeros = np.zeros(nt)
+    data = {"node_x": (("time", "n_node"), X[..., 0]), "node_y": (("time", "n_node"), X[..., 1]),
+            "node_z": (("time", "n_node"), X[..., 2]),
+            "face_node_connectivity": (("n_face", "n_vertex_per_face"), f.astype(np.int32)),
+            "face_tension": (("time", "n_face"), np.zeros((nt, nf))), "tension": ("time", zeros),
+            "area": ("time", zeros), "volume": ("time", zeros), "bending_energy": ("time", zeros),
+            "tension_energy": ("time", zeros), "area_drift": ("time", zeros), "volume_drift": ("time", zeros)}
+    return xr.Dataset(data, coords={"time": ("time", np.asarray(times, float))},
+                      attrs={"delta": 0.116, "complete": 1, "wall_time_s": 1000.0})
+
+
+def test_microscope_reads_the_growing_wrinkle():
+    ds = microscope_from_trajectory(_trajectory(), n_images=2)
+    assert ds.attrs["radius_um"] == pytest.approx(16.71)
+    assert math.isnan(ds.k_star.values[0]) and ds.crests.values[0] == 0
+    for name in ("k_star", "k_star_section"):
+        assert np.allclose(ds[name].values[2:], L, rtol=0.03), ds[name].values
+    for name in ("crests", "up_crossings", "crests_section", "up_crossings_section"):
+        assert list(ds[name].values[2:]) == [L, L]
+    # the wrinkle's amplitude: eps / sqrt(2) in R, through the image as through the section, less the 4 % that
+    # the level-4 polygon's chords cut off a wave of 9 edges (1 - (k h)^2 / 12)
+    assert ds.wrinkle_rms_section.values[3] == pytest.approx(0.02 / math.sqrt(2) * 0.96, rel=0.02)
+    assert ds.wrinkle_rms.values[3] == pytest.approx(ds.wrinkle_rms_section.values[3], rel=0.03)
+    assert np.all(ds.outline_mismatch.values < 0.2)
+    assert ds.image.shape[0] == 2 and list(ds.image_time.values) == [0.0, 1.0]
+    # a sectoral pattern spreads its variance evenly around the outline
+    var = ds.variance_by_angle.values[3]
+    assert var.max() / var.min() < 1.5
+
+
+def test_default_radius_follows_the_paper():
+    assert default_radius_um(0.116) == 16.71 and default_radius_um(0.997) == 18.0
+
+
+def test_command_writes_the_dataset(tmp_path, capsys):
+    traj = tmp_path / "trajectory.nc"
+    _trajectory().to_netcdf(traj)
+    out = tmp_path / "microscope.nc"
+    assert main(["microscope", str(traj), "-o", str(out), "--quiet", "--n-images", "1", "--n-theta", "256"]) == 0
+    assert "wrote" in capsys.readouterr().out
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["Conventions"].startswith("CF")
+        assert ds.sizes["theta"] == 256 and ds.sizes["image_time"] == 1
+        assert ds.k_star.attrs["long_name"].startswith("k_*")
+
+
+@pytest.mark.parametrize(("args", "name"), [(["--offset", "3"], "offset"), (["--n-theta", "8"], "--n-theta"),
+                                            (["--na", "0"], "--na")])
+def test_command_names_bad_arguments(tmp_path, capsys, args, name):
+    traj = tmp_path / "trajectory.nc"
+    _trajectory().to_netcdf(traj)
+    with pytest.raises(SystemExit) if name.startswith("--") else _no_raise():
+        rc = main(["microscope", str(traj), "-o", str(tmp_path / "m.nc"), "--quiet", *args])
+        assert rc == 2
+    assert name in capsys.readouterr().err
+
+
+class _no_raise:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
