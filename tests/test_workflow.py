@@ -79,7 +79,8 @@ TINY = {
     "theory": {"n_out": 101, "store_modes": False},
 }
 
-PER_CASE_RULES = {"simulate", "analyze", "figure_dynamics", "figure_wrinkles", "figure_views", "figure_snapshots"}
+PER_CASE_RULES = {"simulate", "analyze", "microscope", "figure_dynamics", "figure_wrinkles", "figure_views",
+                  "figure_snapshots", "figure_microscope"}
 AGGREGATE_RULES = {"fit", "figure_lstar", "catalog", "default", "all"}
 
 
@@ -323,7 +324,7 @@ def test_tiny_workflow_end_to_end(tmp_path):
     res = wd / "results"
     rows = read_catalog(res / "catalog.csv")
     kinds = sorted({row["kind"] for row in rows})
-    assert kinds == ["fit", "mesh", "spectra", "theory", "trajectory"]
+    assert kinds == ["fit", "mesh", "microscope", "spectra", "theory", "trajectory"]
     for row in rows:  # every catalog row points at a file that opens
         with xr.open_dataset(row["abspath"]) as ds:
             assert ds.sizes or ds.data_vars
@@ -331,7 +332,7 @@ def test_tiny_workflow_end_to_end(tmp_path):
         with xr.open_dataset(nc):
             pass
     pngs = list((res / "figures").rglob("*.png"))
-    assert len(pngs) == 1 + 4 * 2
+    assert len(pngs) == 1 + 5 * 2
     for png in pngs:
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 2000
     for svg in (res / "figures").rglob("*.svg"):

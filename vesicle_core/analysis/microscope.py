@@ -101,8 +101,8 @@ def _dataset(frames, traj, idx, theta, image_idx, n_bins):
                                   "radius of the exact section (outermost crossing)")
     data["radius_ellipsoid"] = _var(("time", "theta"), np.array([f["rho"] for f in frames]), "R",
                                     "radius of the fitted ellipsoid's section (the reference level)")
-    data["outline_mismatch"] = _var("time", [f["mismatch_px"] for f in frames], "pixel",
-                                    "rms distance between the image's outline and the exact section")
+    data["outline_mismatch"] = _var("time", [f["mismatch_px"] for f in frames], "1",
+                                    "rms distance between the image's outline and the exact section, in pixels")
     data["star_shaped"] = _var("time", np.array([f["star_shaped"] for f in frames], np.int8), "1",
                                "1 if every ray crosses the section once")
     if image_idx:

@@ -80,6 +80,12 @@ def _cmd_views(a):
     return _done(out)
 
 
+def _cmd_microscope_figure(a):
+    from ..viz.microscopy import plot_microscope
+
+    return _done(plot_microscope(a.microscope, a.trajectory, a.spectra, a.output, dpi=a.dpi, engine=a.engine))
+
+
 def _cmd_snapshots(a):
     from ..viz.render import snapshots_from_trajectory
 
@@ -94,7 +100,7 @@ def add_figures(subparsers):
     p = subparsers.add_parser("figures", help="figures of the paper (Figs. 3/5, 4, 6e/7c, 8) from the datasets",
                               description="Figures from the datasets: matplotlib (Agg) line plots and heat maps, "
                                           "pyvista off-screen 3D renders (matplotlib fallback).")
-    sub = p.add_subparsers(dest="figure", required=True, metavar="{dynamics,lstar,wrinkles,views,snapshots}")
+    sub = p.add_subparsers(dest="figure", required=True, metavar="{dynamics,lstar,wrinkles,views,snapshots,microscope}")
 
     d = sub.add_parser("dynamics", help="Fig. 3/5: sigma(t), Delta_2(t), Delta_l*(t), IBM against PA, stages marked")
     d.add_argument("spectra", help="spectra.nc of a run ('vesicle decompose')")
@@ -146,6 +152,15 @@ def add_figures(subparsers):
     _engine_arg(n)
     _outputs_arg(n, "png")
     n.set_defaults(func=_cmd_snapshots)
+
+    m = sub.add_parser("microscope", help="Fig. 6 layout: microscope images above 3D views, k_*(t) beside l_*(t)")
+    m.add_argument("microscope", help="microscope.nc of a run ('vesicle microscope')")
+    m.add_argument("trajectory", help="trajectory.nc of the same run")
+    m.add_argument("--spectra", help="spectra.nc of the run: l_*(t)")
+    _engine_arg(m)
+    _outputs_arg(m)
+    _dpi_arg(m)
+    m.set_defaults(func=_cmd_microscope_figure)
     return p
 
 

@@ -7,7 +7,7 @@ Catalog
 beside them (esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attributes``, ``assets``,
 ``aggregation_control``, ``catalog_file``: the Parquet file, else the CSV). Columns (:data:`COLUMNS`):
 
-    kind              mesh | trajectory | spectra | theory | fit
+    kind              mesh | trajectory | spectra | microscope | theory | fit
     case_id           the id above (file stem for meshes, theory and fits)
     Delta, S, chi, N  nominal parameters from the id, else the dataset's attributes
     mesh_family, mesh_level, n_vertices
@@ -74,9 +74,9 @@ COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_lev
 NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "kT", "noise_seed", "delta_mesh", "l_star",
                    "t_star")
 INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices", "noise_seed")
-RUN_KINDS = ("trajectory", "spectra")
+RUN_KINDS = ("trajectory", "spectra", "microscope")
 
-KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")
+KINDS = ("mesh", "trajectory", "spectra", "microscope", "theory", "fit")
 ESMCAT_VERSION = "0.1.0"
 
 
@@ -109,6 +109,8 @@ def _scalar_attr(attrs, *names):
 def _kind_of(ds, path: Path) -> str:
     if "l_star_exponent" in ds.variables or "group" in ds.dims:
         return "fit"
+    if "k_star_section" in ds.variables:
+        return "microscope"
     if "Delta_l" in ds.variables:
         return "spectra" if ("face_tension_mean" in ds.variables or "A_p_bar" in ds.variables) else "theory"
     if "node_x" in ds.variables:
@@ -117,11 +119,12 @@ def _kind_of(ds, path: Path) -> str:
     for kind, folder in (("mesh", "meshes"), ("theory", "theory"), ("fit", "fits")):
         if folder in parts:
             return kind
-    raise CatalogError(f"{path}: cannot tell which kind of dataset this is (mesh, trajectory, spectra, theory, fit)")
+    raise CatalogError(f"{path}: cannot tell which kind of dataset this is (mesh, trajectory, spectra, microscope, "
+                       "theory, fit)")
 
 
 def _id_from_path(path: Path, kind: str) -> str:
-    if kind in ("trajectory", "spectra"):
+    if kind in RUN_KINDS:
         return path.parent.name
     return path.stem
 
@@ -212,7 +215,7 @@ def catalog_row(path, root=None) -> dict:
         row = {c: None for c in COLUMNS}
         row.update(kind=kind, case_id=ident)
         # nominal parameters: the id (what the sweep asked for), else the dataset's attributes
-        delta_mesh = _scalar_attr(attrs, "mesh_delta", "delta_used") if kind in ("trajectory", "spectra") else None
+        delta_mesh = _scalar_attr(attrs, "mesh_delta", "delta_used") if kind in RUN_KINDS else None
         if kind == "mesh":
             delta_mesh = _scalar_attr(attrs, "delta")
         delta = parsed.get("Delta")
@@ -225,7 +228,7 @@ def catalog_row(path, root=None) -> dict:
         if chi is None and kind != "mesh":
             chi = _scalar_attr(attrs, "chi")
         N = parsed.get("N")
-        if N is None and kind in ("trajectory", "spectra"):
+        if N is None and kind in RUN_KINDS:
             N = _scalar_attr(attrs, "N")
         family = parsed.get("mesh_family") or _scalar_attr(attrs, "mesh_family", "family")
         level = parsed.get("mesh_level")
@@ -244,7 +247,7 @@ def catalog_row(path, root=None) -> dict:
             Delta=_num_or_nan(delta), S=_num_or_nan(S), chi=_num_or_nan(chi),
             N=int(N) if N is not None else None, mesh_family=family if kind != "theory" and kind != "fit" else None,
             mesh_level=int(level) if level is not None and kind not in ("theory", "fit") else None,
-            backend=_scalar_attr(attrs, "backend") if kind in ("trajectory", "spectra") else None,
+            backend=_scalar_attr(attrs, "backend") if kind in RUN_KINDS else None,
             created=_created(attrs, path), package_version=_package_version(attrs),
             delta_mesh=_num_or_nan(delta_mesh), n_vertices=n_vertices, tag=parsed.get("tag"),
             variables=repr(sorted(str(v) for v in ds.data_vars)), **run, **noise,
@@ -286,7 +289,7 @@ def _choices(name: str) -> str:
 def esm_collection(catalog_file: str, description: str | None = None, cid: str = "vesicle-wrinkling") -> dict:
     """ESM-collection (esmcat 0.1.0) description of a catalog table (``catalog_file``: Parquet or CSV)."""
     described = {
-        "kind": "dataset kind: mesh | trajectory | spectra | theory | fit",
+        "kind": "dataset kind: mesh | trajectory | spectra | microscope | theory | fit",
         "case_id": "sweep point id (D<Delta>_S<S>_N<N>_L<level>), theory id (D<Delta>_S<S>) or mesh id",
         "Delta": "nominal excess area Delta of the sweep point (1)",
         "S": "flow strength S of the perturbation analysis (1)",
@@ -317,7 +320,8 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
         "esmcat_version": ESMCAT_VERSION,
         "id": cid,
         "description": description or ("Datasets of a vesicle-wrinkling sweep: meshes, IBM trajectories, spherical-"
-                                        "harmonic spectra, perturbation-analysis references and power-law fits."),
+                                        "harmonic spectra, virtual microscopy, perturbation-analysis references and "
+                                        "power-law fits."),
         "catalog_file": catalog_file,
         "attributes": [{"column_name": c, "vocabulary": "", "description": described[c]} for c in COLUMNS
                        if c != "path"],

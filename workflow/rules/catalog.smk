@@ -7,6 +7,7 @@ rule catalog:
         meshes=all_meshes(),
         trajectories=all_trajectories(),
         spectra=all_spectra(),
+        microscope=all_microscopes(),
         theory=all_theories(),
         fit="results/fits/lstar_vs_S.nc",
     output:

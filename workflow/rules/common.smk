@@ -211,6 +211,10 @@ def all_spectra():
     return [f"results/runs/{c}/spectra.nc" for c in CASES]
 
 
+def all_microscopes():
+    return [f"results/runs/{c}/microscope.nc" for c in CASES]
+
+
 def all_theories():
     return [f"results/theory/{t}.nc" for t in THEORIES]
 
@@ -222,6 +226,7 @@ def case_figures(case):
         f"results/figures/{case}/wrinkles.png",
         f"results/figures/{case}/views.png",
         f"results/figures/{case}/snapshots.png",
+        f"results/figures/{case}/microscope.png",
     ]
 
 

@@ -109,3 +109,25 @@ rule figure_lstar:
     shell:
         "vesicle figures lstar {input.fit} --measure {params.measure} --dpi {params.dpi}"
         " -o {output.png} {output.vector} > {log} 2>&1"
+
+
+rule figure_microscope:
+    input:
+        microscope="results/runs/{case_id}/microscope.nc",
+        trajectory="results/runs/{case_id}/trajectory.nc",
+        spectra="results/runs/{case_id}/spectra.nc",
+    output:
+        png=report(
+            "results/figures/{case_id}/microscope.png",
+            caption="../report/microscope.rst",
+            category="Fig. 6: what the microscope sees",
+            subcategory="{case_id}",
+            labels={"case": "{case_id}", "figure": "images, 3D views, k_* and l_*"},
+        ),
+    log:
+        "results/logs/figures/microscope_{case_id}.log",
+    params:
+        dpi=config["figures"]["dpi"],
+    shell:
+        "vesicle figures microscope {input.microscope} {input.trajectory} --spectra {input.spectra}"
+        " --dpi {params.dpi} -o {output.png} > {log} 2>&1"
