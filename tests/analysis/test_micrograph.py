@@ -58,7 +58,7 @@ def test_image_contour_matches_the_exact_section_within_a_tenth_of_a_pixel(spher
     0.066 px rms; most of it a 0.05 px inward shift, the sag of the in-focus band of a sphere, z^2 / 2R)."""
     v, f = (sphere[0], sphere[1]) if case == "sphere" else _perturbed(sphere, *(2 * [int(case[2:4])]))
     img, r_sec = _image_and_section(v, f)
-    r_rad = radial_contour(img, (0.0, 0.0), THETA, (0.7, 1.3))
+    r_rad = radial_contour(img, (0.0, 0.0), THETA, 0.7, 1.3)
     r_nor, _ = radius_on_rays(normal_contour(img, plane(), UNIT_SPHERE, n_points=512).uv, (0.0, 0.0), THETA)
     for r in (r_rad, r_nor):
         assert np.sqrt(np.mean((r - r_sec) ** 2)) / img.pixel < 0.1
@@ -67,7 +67,7 @@ def test_image_contour_matches_the_exact_section_within_a_tenth_of_a_pixel(spher
 @pytest.mark.parametrize("offset", [0.1, 0.5])
 def test_a_focus_off_the_equator_images_that_section(sphere, offset):
     img, r_sec = _image_and_section(sphere[0], sphere[1], plane(offset=offset))
-    r = radial_contour(img, (0.0, 0.0), THETA, (0.5, 1.3))
+    r = radial_contour(img, (0.0, 0.0), THETA, 0.5, 1.3)
     assert np.sqrt(np.mean((r - r_sec) ** 2)) / img.pixel < 0.1
     assert r.mean() == pytest.approx(math.sqrt(1 - offset**2), abs=0.2 * img.pixel)
 
@@ -79,9 +79,9 @@ def test_crests_parallel_to_the_focal_plane_shift_the_outline_without_undulating
     plane) undulates with k_* = 12 and 12 crests."""
     resolution = 0.25 * Optics().pixel_um / R_UM
     img0, _ = _image_and_section(sphere[0], sphere[1])
-    base = radial_contour(img0, (0.0, 0.0), THETA, (0.7, 1.3))
+    base = radial_contour(img0, (0.0, 0.0), THETA, 0.7, 1.3)
     img, r_sec = _image_and_section(*_perturbed(sphere, 12, 0))
-    r = radial_contour(img, (0.0, 0.0), THETA, (0.7, 1.3))
+    r = radial_contour(img, (0.0, 0.0), THETA, 0.7, 1.3)
     shift = (r.mean() - base.mean()) / img.pixel
     assert shift > 0.3 and abs(shift - (r_sec.mean() - 1.0) / img.pixel) < 0.15
     s = profile_spectrum(THETA, r - 1.0, resolution=resolution)
@@ -90,7 +90,7 @@ def test_crests_parallel_to_the_focal_plane_shift_the_outline_without_undulating
     assert s.wrinkle_rms < 1.2 * s0.wrinkle_rms and s.wrinkle_rms < 0.05 * img.pixel
 
     img, _ = _image_and_section(*_perturbed(sphere, 12, 12))
-    s = profile_spectrum(THETA, radial_contour(img, (0.0, 0.0), THETA, (0.7, 1.3)) - 1.0, resolution=resolution)
+    s = profile_spectrum(THETA, radial_contour(img, (0.0, 0.0), THETA, 0.7, 1.3) - 1.0, resolution=resolution)
     assert s.k_star == pytest.approx(12, rel=0.05) and s.crests == 12 and s.up_crossings == 12
 
 

@@ -15,19 +15,21 @@ from vesicle_core.model.units import SCALE_ATTRS, SOLVER_UNITS, cf_unit_attrs
 from vesicle_core.solver.simulate import run
 from vesicle_core.solver.trajectory import _as_ugrid
 
-KINDS = ("mesh", "trajectory", "spectra", "theory", "fit")
+KINDS = ("mesh", "trajectory", "spectra", "microscope", "theory", "fit")
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     """One file of every kind, each written the way the workflow writes it (the ``vesicle`` commands)."""
     d = tmp_path_factory.mktemp("formats")
-    out = {"mesh": d / "mesh.nc", "spectra": d / "spectra.nc", "fit": d / "fit.nc"}
+    out = {"mesh": d / "mesh.nc", "spectra": d / "spectra.nc", "fit": d / "fit.nc", "microscope": d / "microscope.nc"}
     assert main(["mesh", "-o", str(out["mesh"]), "--family", "icosphere", "--level", "2", "--delta", "0.116"]) == 0
     cfg = RunConfig(chi=20.0, N=16, stretch=0.2, t_end=0.1, output_every=0.05, Lambda=2e4, K_volume=1e6,
                     store_velocity=True)
     out["trajectory"] = run(M.load(out["mesh"]), cfg, d / "run", progress=False)
     assert main(["decompose", str(out["trajectory"]), "-o", str(out["spectra"]), "--l-max", "6", "--quiet"]) == 0
+    assert main(["microscope", str(out["trajectory"]), "--spectra", str(out["spectra"]), "-o", str(out["microscope"]),
+                 "--n-images", "1", "--n-theta", "128", "--quiet"]) == 0
     theories = []
     for S in (40, 80, 160):
         theories.append(d / f"theory_S{S}.nc")

@@ -111,10 +111,10 @@ def _subtriangle_centroids(n):
 
 
 def _membrane_samples(v, f, where, sigma_z, spacing):
-    """Points (uv, weight) covering the membrane within 4 sigma_z of the focal plane at ``spacing`` or finer."""
+    """Points (uv, weight) covering the membrane within 3 sigma_z of the focal plane at ``spacing`` or finer."""
     d = (v - where.origin) @ where.normal
     df = d[f]
-    near = (df.min(axis=1) < 4 * sigma_z) & (df.max(axis=1) > -4 * sigma_z)
+    near = (df.min(axis=1) < 3 * sigma_z) & (df.max(axis=1) > -3 * sigma_z)  # weight > 1 %
     tri = v[f[near]]
     if not len(tri):
         return np.zeros((0, 2)), np.zeros(0)
@@ -174,16 +174,17 @@ def _darkest(image, start_xy, direction_xy, s):
     return s[j] + np.clip(shift, -1.0, 1.0) * (s[1] - s[0])
 
 
-def radial_contour(image: Image, center_uv, theta, r_range) -> np.ndarray:
-    """r(theta) (mesh units) of the darkest line along rays from ``center_uv`` at ``theta``, searched within
-    ``r_range`` = (r_min, r_max)."""
-    r_min, r_max = (float(x) / image.pixel for x in r_range)
-    if not 0 <= r_min < r_max:
-        raise ConfigError(f"r_range must satisfy 0 <= r_min < r_max, got {r_range}")
-    s = np.arange(r_min, r_max, 0.25)
-    start = np.repeat(image.to_pixels(np.asarray(center_uv, float)[None]), len(theta), axis=0)
+def radial_contour(image: Image, center_uv, theta, r_min, r_max) -> np.ndarray:
+    """r(theta) (mesh units) of the darkest line along rays from ``center_uv`` at ``theta``, searched between
+    ``r_min`` and ``r_max`` (numbers, or arrays of one per ray, e.g. a band about the fitted ellipse)."""
+    r_min = np.broadcast_to(np.asarray(r_min, float), np.shape(theta)) / image.pixel
+    r_max = np.broadcast_to(np.asarray(r_max, float), np.shape(theta)) / image.pixel
+    if not (np.all(r_min >= 0) and np.all(r_max > r_min)):
+        raise ConfigError("radial_contour: the search needs 0 <= r_min < r_max on every ray")
+    s = np.arange(0.0, float((r_max - r_min).max()), 0.25)
     d = np.stack([np.cos(theta), np.sin(theta)], axis=1)
-    return _darkest(image, start, d, s) * image.pixel
+    start = image.to_pixels(np.asarray(center_uv, float)[None]) + r_min[:, None] * d
+    return (r_min + _darkest(image, start, d, s)) * image.pixel
 
 
 def normal_contour(image: Image, where: Plane, ellipsoid, n_points=512, search=0.2) -> Contour:

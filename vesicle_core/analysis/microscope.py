@@ -31,7 +31,7 @@ __all__ = ["DEFAULT_RADIUS_UM", "default_radius_um", "microscope_from_trajectory
 
 #: the equivalent radii of Sec. V: quasi-spherical (Delta = 0.116) and elongated (Delta ~ 1) vesicles
 DEFAULT_RADIUS_UM = {"quasispherical": 16.71, "elongated": 18.0}
-_MEASURES = ("k_star", "k_rms", "up_crossings", "crests", "wrinkle_rms")
+SEARCH = 0.25  # R: half-width of the band about the fitted ellipse searched for the outline
 
 
 def default_radius_um(delta: float) -> float:
@@ -60,7 +60,8 @@ def _frame(v, faces, where, ellipsoid, optics, radius_um, half_width, theta, opt
     rho = CS.ellipsoid_section_radius(where, ellipsoid, center, theta)
     r_sec, star = CS.radius_on_rays(contour.uv, center, theta)
     img = render(v, faces, where, optics, length_um=radius_um, half_width=half_width, center_uv=center)
-    r_img = radial_contour(img, center, theta, (0.3 * rho.min(), min(half_width, 1.4 * rho.max())))
+    # search a band of +-SEARCH about the fitted ellipse: wider than any wrinkle, narrow enough to be cheap
+    r_img = radial_contour(img, center, theta, np.maximum(rho - SEARCH, 0.0), rho + SEARCH)
     out = {"image": img, "rho": rho, "r_section": r_sec, "r_image": r_img, "star_shaped": star,
            "mismatch_px": float(np.sqrt(np.mean((r_img - r_sec) ** 2)) / img.pixel)}
     for suffix, r in (("", r_img), ("_section", r_sec)):
