@@ -84,3 +84,15 @@ class _no_raise:
 
     def __exit__(self, *exc):
         return False
+
+
+def test_docs_list_exactly_the_variables_of_microscope_nc():
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference" / "datasets.md").read_text()
+    section = doc.split("## microscope.nc: the virtual microscope")[1].split("\n## ")[0]
+    listed = {name for row in section.splitlines() if row.startswith("| `")
+              for name in re.findall(r"`([a-z_0-9]+)`", row.split("|")[1])}
+    ds = microscope_from_trajectory(_trajectory(times=(0.0, 0.5), eps=(0.0, 0.01)), n_images=1, n_theta=64)
+    assert listed == set(ds.data_vars) | {"time", "theta", "k", "sector", "image_time"} | ({"t_tau"} & listed)
