@@ -59,11 +59,12 @@ def test_command_writes_the_dataset(tmp_path, capsys):
     traj = tmp_path / "trajectory.nc"
     _trajectory().to_netcdf(traj)
     out = tmp_path / "microscope.nc"
-    assert main(["microscope", str(traj), "-o", str(out), "--quiet", "--n-images", "1", "--n-theta", "256"]) == 0
+    assert main(["microscope", str(traj), "-o", str(out), "--quiet", "--image-times", "0.4", "1.0", "--n-theta",
+                 "256"]) == 0
     assert "wrote" in capsys.readouterr().out
     with xr.open_dataset(out) as ds:
         assert ds.attrs["Conventions"].startswith("CF")
-        assert ds.sizes["theta"] == 256 and ds.sizes["image_time"] == 1
+        assert ds.sizes["theta"] == 256 and list(ds.image_time.values) == [0.5, 1.0]
         assert ds.k_star.attrs["long_name"].startswith("k_*")
 
 

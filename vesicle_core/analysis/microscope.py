@@ -124,8 +124,11 @@ def _dataset(frames, traj, idx, theta, image_idx, n_bins):
     return xr.Dataset(data, coords=coords)
 
 
-def _image_frames(time, n_images):
-    """Indices of ``n_images`` analysed frames evenly spread over time >= 0 (the reversed flow)."""
+def _image_frames(time, n_images, image_times=None):
+    """Indices of the analysed frames nearest ``image_times``, else of ``n_images`` frames evenly spread over
+    time >= 0 (the reversed flow)."""
+    if image_times is not None:
+        return sorted({int(np.argmin(np.abs(time - float(t)))) for t in image_times})
     after = np.flatnonzero(time >= 0)
     if n_images == 0 or not len(after):
         return []
@@ -135,10 +138,11 @@ def _image_frames(time, n_images):
 def microscope_from_trajectory(traj: xr.Dataset, *, spectra: xr.Dataset | None = None, optics: Optics | None = None,
                                radius_um: float | None = None, offset: float = 0.0, normal=(0.0, 0.0, 1.0),
                                stride: int = 1, n_theta: int = 512, n_bins: int = 16, n_images: int = 6,
-                               progress: bool = False, command: str | None = None) -> xr.Dataset:
+                               image_times=None, progress: bool = False, command: str | None = None) -> xr.Dataset:
     """The virtual microscope over every ``stride``-th snapshot of ``traj`` (module docstring): focal plane at
     ``offset`` (R) along ``normal`` from the vesicle's first centre; ``radius_um`` R in micrometres (default from
-    the trajectory's delta, :func:`default_radius_um`); ``n_images`` images kept in the file."""
+    the trajectory's delta, :func:`default_radius_um`); ``n_images`` images kept in the file, or those of the frames
+    nearest ``image_times`` (gamma_dot (t - t0), e.g. the times of the paper's Fig. 6)."""
     started = time_module.perf_counter()
     optics = Optics() if optics is None else optics
     validate_trajectory(traj)
@@ -166,7 +170,7 @@ def microscope_from_trajectory(traj: xr.Dataset, *, spectra: xr.Dataset | None =
         v = _vertices(traj, int(k))
         frames.append(_frame(v, faces, where, _ellipsoid(spectra, time[k], v), optics, radius_um, half_width,
                              theta, opts))
-    ds = _dataset(frames, traj, idx, theta, _image_frames(time[idx], n_images), n_bins)
+    ds = _dataset(frames, traj, idx, theta, _image_frames(time[idx], n_images, image_times), n_bins)
     attrs = netcdf_safe_attrs({k: v for k, v in traj.attrs.items()
                                if k not in ("Conventions", "title", "source", "history")})
     attrs.update(cf_attrs("virtual phase-contrast microscopy of a vesicle trajectory: outlines and their spectra",

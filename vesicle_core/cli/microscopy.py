@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import sys
 
-from .args import int_in, positive_float
+from ..analysis.micrograph import Optics
+from .args import finite_float, int_in, positive_float
 
 
 def add_microscope(sub):
@@ -24,17 +25,20 @@ def add_microscope(sub):
                    help="normal of the focal plane (default 0 0 1: the optical axis along z)")
     p.add_argument("--radius-um", type=positive_float("--radius-um"), default=None,
                    help="R in micrometres (default: 16.71 for Delta < 0.5, else 18, the radii of Sec. V)")
-    p.add_argument("--na", type=positive_float("--na"), default=0.75, help="numerical aperture (default 0.75)")
-    p.add_argument("--magnification", type=positive_float("--magnification"), default=40.0,
-                   help="objective magnification (default 40)")
-    p.add_argument("--camera-pixel-um", type=positive_float("--camera-pixel-um"), default=6.45,
-                   help="camera pixel in micrometres (default 6.45: 0.161 um in the sample at 40x)")
-    p.add_argument("--wavelength-um", type=positive_float("--wavelength-um"), default=0.55,
-                   help="wavelength in micrometres (default 0.55)")
+    p.add_argument("--na", type=positive_float("--na"), default=Optics.numerical_aperture,
+                   help=f"numerical aperture (default {Optics.numerical_aperture})")
+    p.add_argument("--magnification", type=positive_float("--magnification"), default=Optics.magnification,
+                   help=f"objective magnification (default {Optics.magnification:g})")
+    p.add_argument("--camera-pixel-um", type=positive_float("--camera-pixel-um"), default=Optics.camera_pixel_um,
+                   help=f"camera pixel in micrometres (default {Optics.camera_pixel_um})")
+    p.add_argument("--wavelength-um", type=positive_float("--wavelength-um"), default=Optics.wavelength_um,
+                   help=f"wavelength in micrometres (default {Optics.wavelength_um})")
     p.add_argument("--n-theta", type=int_in("--n-theta", 16, 65536), default=512,
                    help="rays per outline (even; default 512)")
     p.add_argument("--n-images", type=int_in("--n-images", 0, 1000), default=6,
                    help="images kept in the file, evenly spread over t >= 0 (default 6)")
+    p.add_argument("--image-times", type=finite_float("--image-times"), nargs="+", default=None,
+                   help="keep the images of the frames nearest these gamma_dot (t - t0) instead (e.g. Fig. 6's)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_microscope)
 
@@ -50,7 +54,8 @@ def _cmd_microscope(a):
     with open_trajectory(a.trajectory, require_complete=True) as traj:
         ds = microscope_from_trajectory(traj, spectra=spectra, optics=optics, radius_um=a.radius_um,
                                         offset=a.offset, normal=a.normal, stride=a.stride, n_theta=a.n_theta,
-                                        n_images=a.n_images, progress=not a.quiet, command=" ".join(sys.argv))
+                                        n_images=a.n_images, image_times=a.image_times, progress=not a.quiet,
+                                        command=" ".join(sys.argv))
     write_dataset(ds, a.output)
     run_s = float(ds.attrs.get("wall_time_s", float("nan")))
     own_s = float(ds.attrs["microscope_wall_time_s"])
