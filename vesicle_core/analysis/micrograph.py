@@ -24,7 +24,7 @@ Contour detection (two methods, both sub-pixel):
 * :func:`radial_contour` -- intensity profiles along rays from the centre (bicubic interpolation, 1/4 px steps),
   the darkest point on each, refined by a parabola through its three samples: r(theta).
 * :func:`normal_contour` -- profiles along the normals of the fitted ellipsoid's section, so that each profile
-  crosses the outline once even where a ray from the centre crosses it twice (a peanut's waist, a fold): a closed
+  crosses the outline once even where a ray from the centre crosses it more than once (a peanut's waist): a closed
   polygon.
 """
 
