@@ -11,9 +11,9 @@ import pytest
 from vesicle_core.errors import MissingDependency, VesicleError, require
 
 ROOT = Path(__file__).resolve().parents[1]
-#: the packages of the extras (workflow, viz, fast, gpu, esm), blocked in the subprocess below
+#: the packages of the extras (workflow, viz, fast, gpu, esm, microscopy), blocked in the subprocess below
 OPTIONAL = ("snakemake", "jsonschema", "jinja2", "pyarrow", "matplotlib", "pyvista", "vtk", "numba", "pyfftw", "cupy",
-            "intake", "intake_esm")
+            "intake", "intake_esm", "trimesh", "skimage")
 
 CORE_ONLY = textwrap.dedent(f"""
     import importlib, pkgutil, sys
