@@ -183,7 +183,7 @@ def _trajectory_attrs(mesh, cfg: RunConfig, solver: IBMSolver, dt: float, adapti
 
 
 # The sharp coupling resolves what the markers resolve: with a mesh edge of 2h its l_res at N = 128 is 16 against 25
-# with edge h, and l = 2 is off by up to 5.6% at N = 64 (docs/history/solver.md, "Sharpened coupling")
+# with edge h, and l = 2 is off by up to 5.6% at N = 64 (docs/explanation/resolution.md, "Sharpened coupling")
 SHARP_EDGE_MAX = 1.5
 #: an adaptive step shorter than this fraction of the bending limit stops the run (exit 3): a collapsed step
 DT_COLLAPSE = 1e-6
