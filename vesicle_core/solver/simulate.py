@@ -192,8 +192,8 @@ DT_COLLAPSE = 1e-6
 def _check_mesh_spacing(mesh, cfg: RunConfig) -> None:
     """Warn when the sharp coupling runs on markers much coarser than the grid (edge > SHARP_EDGE_MAX h), or with a
     kernel whose Fourier transform does not vanish at the grid's Nyquist wave number (the 3-point kernel: its resolved
-    rates come out 2-6% fast with edge h, up to 41% with edge 2h; docs/history/solver.md), or noise on markers much finer
-    than the grid (fluctuations.noise_mesh_warning)."""
+    rates come out 2-6% fast with edge h, up to 41% with edge 2h; docs/explanation/resolution.md), or noise on
+    markers much finer than the grid (fluctuations.noise_mesh_warning)."""
     edge = float(mesh.quality()["edge_mean"]) / cfg.h
     if cfg.kT > 0 and (message := noise_mesh_warning(edge)):
         log.warning(message)
