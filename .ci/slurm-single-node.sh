@@ -11,7 +11,8 @@
 # accounting (no slurmdbd). Without accounting `sacct` answers nothing, so the Snakemake executor must be told to
 # read job states with `squeue` (--slurm-status-command squeue); MinJobAge keeps finished jobs visible to squeue
 # for 10 min. The one partition is called `cpu`, as in workflow/profiles/slurm. STATE (default /tmp/vesicle-slurm)
-# is set by VESICLE_SLURM_DIR.
+# is set by VESICLE_SLURM_DIR. While the cluster runs, /etc/slurm/slurm.conf is a link to STATE's configuration
+# (the script refuses to start where that file exists and is not its own link).
 set -euo pipefail
 
 STATE=${VESICLE_SLURM_DIR:-/tmp/vesicle-slurm}
@@ -33,8 +34,10 @@ write_conf() {
   local host cpus mem
   host=$(hostname -s)
   cpus=$(nproc)
-  # 90% of the memory, so that slurmd does not find less than it was told and drain the node
-  mem=$(awk '/MemTotal/ {printf "%d", $2 / 1024 * 0.9}' /proc/meminfo)
+  # 90% of the memory, and at least 16 GB: the CPU profile asks 8 GB for a run, and memory is not a consumable
+  # resource here (CR_CPU, no cgroups), so a small CI machine must not refuse the request; config_overrides keeps
+  # slurmd from draining a node that has less than this
+  mem=$(awk '/MemTotal/ {m = $2 / 1024 * 0.9; printf "%d", (m > 16384 ? m : 16384)}' /proc/meminfo)
   mkdir -p "$STATE/ctld" "$STATE/spool"
   cat >"$CONF" <<EOF
 # written by .ci/slurm-single-node.sh: one node, no cgroups, no accounting database
