@@ -63,3 +63,11 @@ def test_the_default_jobs_cost_has_one_home():
     """config/README.md used to state its own minutes for the default job (8), README another (12)."""
     text = _text("config/README.md")
     assert "about 8 min" not in text
+
+
+def test_config_readme_has_no_relative_links():
+    """config/README.md is included into docs/reference/configuration.md, where a link relative to config/ breaks:
+    it names docs pages as plain paths instead."""
+    import re
+
+    assert not re.findall(r"\]\((?!https?:)[^)]*\)", (ROOT / "config" / "README.md").read_text())
