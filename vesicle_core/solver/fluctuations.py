@@ -71,6 +71,7 @@ import numpy as np
 
 from ..errors import check_choice, check_range
 from ..errors import check_counter as _check_counter
+from ..xp import to_float
 
 #: how a step's white noise is drawn (run parameter noise_scheme; module docstring, "Step")
 NOISE_SCHEMES = ("euler", "lm", "midpoint")
@@ -324,7 +325,7 @@ class ThermalVelocity:
         total = 0.0
         for k in range(int(n_draws)):
             d = mob.coupler.interpolate(probe.displacement(1.0, k, stream=3))
-            total += float(xp.mean(d.astype(xp.float64) ** 2))
+            total += to_float(xp.mean(d.astype(xp.float64) ** 2))
         return total / int(n_draws) / (2.0 * self.kT)
 
     def step_limit(self, X, h, max_step):
