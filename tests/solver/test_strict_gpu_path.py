@@ -141,8 +141,9 @@ def test_strict_decompose_of_device_results_matches_numpy(device_cupy, tmp_path)
     for name in ("numpy", "cupy"):
         # round-off only (module docstring)
         runs[name] = run_case(tmp_path / name, config("default_job_without_ale", name))
-        r = subprocess.run([sys.executable, "-m", "vesicle_core.cli", "decompose", str(tmp_path / name / "trajectory.nc"),
-                            "-o", str(tmp_path / f"{name}.nc"), "--quiet", "--l-max", "8"],
+        r = subprocess.run([sys.executable, "-m", "vesicle_core.cli", "decompose",
+                            str(tmp_path / name / "trajectory.nc"), "-o", str(tmp_path / f"{name}.nc"), "--quiet",
+                            "--l-max", "8"],
                            capture_output=True, text=True, env={**os.environ, "PYTHONPATH": ROOT})
         assert r.returncode == 0, r.stderr
     assert_same_run(runs["numpy"], runs["cupy"])
