@@ -363,8 +363,7 @@ class _Run:
         if abs(sc["area_drift"]) > cfg.max_drift or abs(sc["volume_drift"]) > cfg.max_drift:
             self.fail(f"area drift {sc['area_drift']:.3%} or volume drift {sc['volume_drift']:.3%} exceeds "
                       f"max_drift = {cfg.max_drift:g}; lower dt or raise Lambda", X)
-        sc["dt_tau"] = self.dt_step
-        sc["cg_iterations"] = float(state.cg_iterations[-1]) if state.cg_iterations else 0.0
+        sc.update(dt_tau=self.dt_step, cg_iterations=float(state.cg_iterations[-1]) if state.cg_iterations else 0.0)
         q = B.triangle_quality(geo)  # 4 sqrt(3) A / sum l^2, and the triangle strain against the reference mesh
         ref = mem.ref.face_area if state.lipid_area is None else self.xp.asarray(state.lipid_area)
         sc.update(mesh_quality_min=to_float(q.min()), mesh_quality_median=to_float(self.xp.median(q)),
