@@ -111,20 +111,30 @@ def assert_same_run(a, b, atol=ATOL):
 
 
 @pytest.mark.parametrize("case", list(CASES))
-def test_strict_discretisation_matches_numpy(device_cupy, tmp_path, case):
+def test_strict_discretisation_matches_numpy(device_cupy, monkeypatch, tmp_path, case):
+    from vesicle_core.solver import integrators
+
+    # the Arnoldi re-measurement of the bending limit (every 20 steps in runs) every 2 steps, so that these few steps
+    # take it on the device too, from the last measurement's vector
+    monkeypatch.setattr(integrators, "BENDING_REFRESH", 2)
     cfg_np, cfg_cp = config(case, "numpy"), config(case, "cupy")
     a = run_case(tmp_path / "numpy", cfg_np)
     b = run_case(tmp_path / "cupy", cfg_cp)
     assert_same_run(a, b, atol=ATOL if cfg_np.mesh_ale == "none" and cfg_np.dtype == "float64" else ATOL_ALE)
+    assert int(b.attrs["bending_solves"]) > 0  # the re-measurement ran on the device
     if case.startswith("noise"):
         assert int(b.attrs["thermal_noise_fields"]) > 0 and int(b.attrs["thermal_stokes_solves"]) > 0
     if case.startswith("default"):
         assert int(b.attrs["seed_l_max"]) >= 3  # the thermal seed was put on at the reversal
 
 
-def test_strict_resume_from_checkpoint_matches_numpy(device_cupy, tmp_path):
+def test_strict_resume_from_checkpoint_matches_numpy(device_cupy, monkeypatch, tmp_path):
     """A device run stopped after 3 steps (as if interrupted: checkpoint written) and resumed ends where an
-    uninterrupted NumPy run ends."""
+    uninterrupted NumPy run ends; the checkpoint carries the bending limit's Arnoldi vector (re-measured every 2
+    steps here) and the secant preconditioner's model."""
+    from vesicle_core.solver import integrators
+
+    monkeypatch.setattr(integrators, "BENDING_REFRESH", 2)
     # without the ALE, so that round-off is all that can differ (module docstring)
     a = run_case(tmp_path / "numpy", config("noise_lm_secant", "numpy", mesh_ale="none"))
     cfg = config("noise_lm_secant", "cupy", checkpoint_every=1, mesh_ale="none")
@@ -149,9 +159,12 @@ def test_strict_decompose_of_device_results_matches_numpy(device_cupy, tmp_path)
     assert_same_run(runs["numpy"], runs["cupy"])
     with xr.open_dataset(tmp_path / "numpy.nc") as a, xr.open_dataset(tmp_path / "cupy.nc") as b:
         assert set(a.data_vars) == set(b.data_vars)
-        for v in a.data_vars:
-            if np.issubdtype(a[v].dtype, np.floating):
-                # positions equal to 2e-16 R gave spectra equal to 1e-4 of their largest coefficient (not explained
-                # yet: the analysis is the same host code on two trajectories that differ only in round-off)
-                scale = float(np.nanmax(np.abs(a[v].values), initial=0.0))
-                np.testing.assert_allclose(b[v].values, a[v].values, rtol=0, atol=1e-3 * scale + 1e-12, err_msg=v)
+        # what does not depend on how the shape is turned, to 1e-5 of its largest value (measured: 1.1e-6 in
+        # Delta_l at l = 2, which the fitted ellipsoid enters; l_* and t_* exactly). The per-(l, m) coefficients and the fitted ellipsoid's axes and rotation are left out:
+        # the 1:0.8:1 start has two equal axes, so the fitted frame turns freely in their plane, and positions equal
+        # to 2e-16 R turned it by 4e-4 rad (the per-m coefficients by 1e-4 of the largest)
+        for v in ("Delta_tilde_l", "sigma", "A_p_bar", "l_star_t", "t_star", "l_star", "l_peak", "R_eq", "Delta_mesh",
+                  "centroid"):
+            scale = float(np.nanmax(np.abs(a[v].values), initial=0.0))
+            np.testing.assert_allclose(b[v].values, a[v].values, rtol=0, atol=1e-5 * scale + 1e-15, err_msg=v)
+        assert float(b.l_star) == pytest.approx(float(a.l_star), rel=1e-12)
