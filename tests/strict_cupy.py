@@ -15,9 +15,10 @@ and counted):
 * any NumPy or SciPy function applied to a device array (CuPy dispatches many NumPy functions through
   ``__array_function__``/``__array_ufunc__``; SciPy's call ``np.asarray`` and fail there). The package's rule is
   ``xp`` from the arrays, so a NumPy call on a device array is a bug even where CuPy would dispatch it;
-* ``float()``, ``int()``, ``bool()``, ``complex()``, ``.item()``, ``.tolist()``, ``len()`` stays allowed. Real CuPy
-  answers these with a hidden device synchronisation (``float(self.get())``); here a scalar must be read through
-  ``cupy.asnumpy``/``.get()`` (vesicle_core.xp.to_float), which counts it;
+* ``float()``, ``int()``, ``bool()``, ``complex()``, ``.item()``, ``.tolist()`` (``len()`` and ``.shape`` stay
+  allowed: they read no data). Real CuPy answers these with a hidden device synchronisation
+  (``float(self.get())``); here a scalar must be read through ``cupy.asnumpy``/``.get()``
+  (vesicle_core.xp.to_float), which counts it;
 * a host NumPy array as an index or as the value of an item assignment (real CuPy copies it to the device
   silently).
 

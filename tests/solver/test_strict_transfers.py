@@ -138,8 +138,15 @@ def test_strict_planted_numpy_call_in_spread_raises(strict_cupy, monkeypatch):
         ibm.spread(F, st, grid, be)
 
 
-@pytest.mark.parametrize("convert", [np.asarray, float, bool, lambda a: a.item(), lambda a: a + np.ones(1),
-                                     lambda a: np.sqrt(a)])
+def _scipy_norm(a):
+    import scipy.linalg
+
+    return scipy.linalg.norm(a)
+
+
+@pytest.mark.parametrize("convert", [np.asarray, float, int, bool, lambda a: a.item(), lambda a: a + np.ones(1),
+                                     lambda a: np.sqrt(a), lambda a: np.sum(a), _scipy_norm,
+                                     lambda a: a[np.zeros(1, dtype=int)]])
 def test_strict_stand_in_refuses_implicit_conversions(strict_cupy, convert):
     a = strict_cupy.asarray(np.ones(1))
     with pytest.raises(TypeError):
