@@ -160,9 +160,10 @@ def test_strict_decompose_of_device_results_matches_numpy(device_cupy, tmp_path)
     with xr.open_dataset(tmp_path / "numpy.nc") as a, xr.open_dataset(tmp_path / "cupy.nc") as b:
         assert set(a.data_vars) == set(b.data_vars)
         # what does not depend on how the shape is turned, to 1e-5 of its largest value (measured: 1.1e-6 in
-        # Delta_l at l = 2, which the fitted ellipsoid enters; l_* and t_* exactly). The per-(l, m) coefficients and the fitted ellipsoid's axes and rotation are left out:
-        # the 1:0.8:1 start has two equal axes, so the fitted frame turns freely in their plane, and positions equal
-        # to 2e-16 R turned it by 4e-4 rad (the per-m coefficients by 1e-4 of the largest)
+        # Delta_l at l = 2, which the fitted ellipsoid enters; l_* and t_* exactly). The per-(l, m) coefficients and
+        # the fitted ellipsoid's axes and rotation are left out: the 1:0.8:1 start has two equal axes, so the fitted
+        # frame turns freely in their plane, and positions equal to 2e-16 R turned it by 4e-4 rad (the per-m
+        # coefficients by 1e-4 of the largest)
         for v in ("Delta_tilde_l", "sigma", "A_p_bar", "l_star_t", "t_star", "l_star", "l_peak", "R_eq", "Delta_mesh",
                   "centroid"):
             scale = float(np.nanmax(np.abs(a[v].values), initial=0.0))
