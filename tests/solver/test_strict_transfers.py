@@ -1,8 +1,8 @@
 """Host-device transfers per step on the device path, counted by the strict CuPy stand-in (tests/strict_cupy.py).
 
 A step's transfers are of two kinds. Per Stokes product of the harmonic tension's CG (and its warm-start and drift
-solves): the coefficients go to the device (one copy, B c) and the area rate's projection comes back (one copy of
-K = (l_t + 1)^2 numbers), 2 per product; the product count follows the CG's iterations, not the mesh. The rest is a
+solves): the coefficients go to the device and the area rate's projection comes back (K = (l_t + 1)^2 numbers
+each; B lives on the device), 2 per product; the product count follows the CG's iterations, not the mesh. The rest is a
 fixed budget per step (measured on these cases, 162 and 642 vertices alike): the tension's warm start and result,
 the linearisation strain and the mesh ALE (host LSQR: positions, displacement and area error down, the tangential
 displacement up), the noise field (lm: one 3 N^3 host draw up; midpoint: two), the frame's scalars.
