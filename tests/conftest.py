@@ -44,3 +44,12 @@ def fake_cupy(monkeypatch):
     monkeypatch.setitem(sys.modules, "cupy", cp)
     monkeypatch.setitem(sys.modules, "cupyx", cpx)
     return cp, calls
+
+
+@pytest.fixture
+def strict_cupy(monkeypatch):
+    """The strict CuPy stand-in of tests/strict_cupy.py in place of ``cupy``/``cupyx``: device arrays of their own
+    type that NumPy cannot read, and the count of host-device transfers (``cupy.transfers``). Returns the module."""
+    from strict_cupy import install
+
+    return install(monkeypatch)

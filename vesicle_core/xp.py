@@ -24,3 +24,10 @@ def array_module(*arrays):
 def to_numpy(a) -> np.ndarray:
     """``a`` as a host NumPy array: a copy from the device for CuPy arrays (``.get()``), no copy otherwise."""
     return np.asarray(a.get() if hasattr(a, "get") else a)
+
+
+def to_float(a) -> float:
+    """A one-element array (a reduction's result) as a Python float. On a GPU this is a synchronising read of one
+    number, written out so that every such read is visible: CuPy's own ``float(x)`` does the same copy implicitly,
+    and the tests' strict CuPy stand-in refuses it (tests/strict_cupy.py) and counts this one."""
+    return float(to_numpy(a))

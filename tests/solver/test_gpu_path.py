@@ -1,6 +1,7 @@
 """Every CuPy-only branch, run on the CPU: a stand-in ``cupy``/``cupyx`` pair that answers with NumPy.
 
-No GPU has been lent to this project, so this is the only check those lines get. The stand-in (the ``fake_cupy``
+No GPU has run this code. The stand-in here answers with NumPy arrays, so it cannot see an implicit conversion; the
+strict stand-in (tests/strict_cupy.py, tests/solver/test_strict_gpu_path.py) can. This one (the ``fake_cupy``
 fixture of tests/conftest.py) implements the CuPy API the package calls (``get_array_module``, ``asarray``,
 ``asnumpy``, ``cuda.runtime.getDeviceCount``, ``fft``, ``cupyx.scatter_add``); everything else is NumPy's. A run
 on ``backend: cupy`` then takes the GPU branches

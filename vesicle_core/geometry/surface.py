@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ..errors import MeshError
-from ..xp import array_module
+from ..xp import array_module, to_float
 
 
 def cross(a, b):
@@ -72,7 +72,7 @@ def enclosed_volume(vertices, faces) -> float:
 def corner_volume(P0, P1, P2) -> float:
     """Enclosed volume from the three corners of every triangle, each component-first (3, F) (the solver's
     layout): the same divergence-theorem sum as :func:`enclosed_volume`."""
-    return float(dot(P0, cross(P1, P2)).sum() / 6.0)
+    return to_float(dot(P0, cross(P1, P2)).sum() / 6.0)
 
 
 def vertex_average(vertices, faces, face_values) -> np.ndarray:

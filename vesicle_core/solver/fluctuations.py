@@ -71,6 +71,7 @@ import numpy as np
 
 from ..errors import check_choice, check_range
 from ..errors import check_counter as _check_counter
+from ..xp import to_float
 
 #: how a step's white noise is drawn (run parameter noise_scheme; module docstring, "Step")
 NOISE_SCHEMES = ("euler", "lm", "midpoint")
@@ -229,13 +230,15 @@ def rfd_drift(mobility, X, kT, seed, step, delta=1e-4, stream=1):
     X - delta W / 2: call ``mobility.prepare(X)`` again before using it at X."""
     kT = float(check_range("kT", kT, 0.0, None))
     delta = float(check_range("delta", delta, 0.0, None, lo_open=True))
+    # X stays where it is (the device on CuPy): only W, drawn on the host so that NumPy and CuPy get the same numbers,
+    # crosses (one host-to-device copy of 3 V numbers), and the result stays on X's device
     xp = mobility.backend.xp
-    X = np.asarray(X, dtype=np.float64)
-    W = noise_generator(seed, step, stream).standard_normal(X.shape)
+    X = xp.asarray(X, dtype=xp.float64)
+    W = xp.asarray(noise_generator(seed, step, stream).standard_normal(X.shape))
     out = []
     for s in (0.5, -0.5):
-        mobility.prepare(xp.asarray(X + s * delta * W))
-        out.append(mobility.backend.asnumpy(mobility.apply(xp.asarray(W))))
+        mobility.prepare(X + s * delta * W)
+        out.append(mobility.apply(W))
     return kT / delta * (out[0] - out[1])
 
 
@@ -324,7 +327,7 @@ class ThermalVelocity:
         total = 0.0
         for k in range(int(n_draws)):
             d = mob.coupler.interpolate(probe.displacement(1.0, k, stream=3))
-            total += float(xp.mean(d.astype(xp.float64) ** 2))
+            total += to_float(xp.mean(d.astype(xp.float64) ** 2))
         return total / int(n_draws) / (2.0 * self.kT)
 
     def step_limit(self, X, h, max_step):
@@ -355,13 +358,13 @@ class ThermalVelocity:
         con = self.constrained
         be, coupler = con.backend, con.mobility.coupler
         con.dt, con.step = dt, step
-        X = np.asarray(be.asnumpy(X), dtype=np.float64)
-        W = noise_generator(self.seed, step, 1).standard_normal(X.shape)
+        X = be.xp.asarray(X, dtype=be.xp.float64)  # on the device; only W crosses (as in rfd_drift)
+        W = be.asarray(noise_generator(self.seed, step, 1).standard_normal(X.shape))
         n0 = con.mobility.n_products
         grid = None
         for s in (0.5, -0.5):
-            con.prepare(be.asarray(X + s * self.delta * W))
-            f = con.force(be.asarray(W, dtype=con._geo.area.dtype))
+            con.prepare(X + s * self.delta * W)
+            f = con.force(W.astype(con._geo.area.dtype, copy=False))
             g = coupler.spread(f)  # the spreader's buffer: consumed before the next spread
             grid = s * 2.0 * g if grid is None else grid + s * 2.0 * g  # a new array: g is the reused buffer
         self.stokes_solves += con.mobility.n_products - n0 + 1
@@ -377,8 +380,7 @@ class ThermalVelocity:
         # a function of the step counter, so a resumed run applies the drift on the same steps
         if self.drift_every and step % self.drift_every == 0:
             n0 = self.constrained.mobility.n_products
-            drift = self.drift_every * rfd_drift(self.constrained, be.asnumpy(X), self.kT, self.seed, step,
-                                                 delta=self.delta)
+            drift = self.drift_every * rfd_drift(self.constrained, X, self.kT, self.seed, step, delta=self.delta)
             self.stokes_solves += self.constrained.mobility.n_products - n0
         self.constrained.mobility.prepare(X)
         u = self.constrained.mobility.coupler.interpolate(self.noise.velocity(dt, step))

@@ -32,6 +32,7 @@ from ..errors import ConfigError
 from ..model.flow import background_velocity
 from ..model.parameters import SCHEMES as SCHEME_NAMES
 from ..model.resolution import DEFAULT_KERNEL
+from ..xp import to_float
 
 log = logging.getLogger("vesicle_core.solver.simulate")  # part of the run's log
 
@@ -103,8 +104,8 @@ class Projection(Integrator):
         dX = solver.induced_displacement(X, F - state.sigma_g * gradA, dt, same_points=refresh)
         if cfg.chi > 0:
             dX = dX + background_velocity(X, rate) * dt
-        A = float(geo.area.sum())
-        d_sigma = (float(xp.sum(gradA * dX)) + (A - A0)) / (dt * float(xp.sum(gradA * state.w)))
+        A = to_float(geo.area.sum())
+        d_sigma = (to_float(xp.sum(gradA * dX)) + (A - A0)) / (dt * to_float(xp.sum(gradA * state.w)))
         state.sigma_g += d_sigma
         return dX - (dt * d_sigma) * state.w
 
@@ -230,7 +231,7 @@ class Inextensible(Integrator):
         if state.sigma is None:
             return 0.0
         xp = self.solver.xp
-        return float(xp.sum(state.sigma * geo.area) / xp.sum(geo.area))
+        return to_float(xp.sum(state.sigma * geo.area) / xp.sum(geo.area))
 
     def next_dt(self, state, geo) -> float:
         cfg = self.cfg
@@ -238,7 +239,7 @@ class Inextensible(Integrator):
             self._measure_bending(state)
         limits = {"bending": cfg.dt_safety * self.bending_limit(state), "noise_step": self.dt_noise}
         if state.sigma is not None:
-            smax = float(self.solver.xp.abs(state.sigma).max())
+            smax = to_float(self.solver.xp.abs(state.sigma).max())
             if smax > 0:
                 limits["tension"] = cfg.dt_safety * TENSION_STABILITY[cfg.coupling] * cfg.h / smax
             rate, _ = fastest_growth_rate(self.sigma_mean(state, geo), self.l_grid, cfg.h, cfg.kernel, cfg.coupling)

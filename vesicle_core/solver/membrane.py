@@ -46,7 +46,7 @@ import numpy as np
 
 from ..errors import ConfigError, check_range
 from ..geometry.surface import corner_volume, cross, dot
-from ..xp import array_module
+from ..xp import array_module, to_float
 
 # Internally vectors are stored component-first ("structure of arrays"): a position array is (3, V),
 # per-corner data (3, 3, F) = (component, corner, face). Every operation is then an elementwise
@@ -188,7 +188,7 @@ def bending_energy(X, topo: Topology, kappa=1.0, geo: Geometry | None = None, ar
     """Discrete Helfrich energy, eq. (25)."""
     xp = topo.xp
     geo = geo or geometry(X, topo, area_model)
-    return float(0.5 * kappa * xp.sum(dot(geo.Ht, geo.Ht) / geo.vertex_area))
+    return to_float(0.5 * kappa * xp.sum(dot(geo.Ht, geo.Ht) / geo.vertex_area))
 
 
 def bending_force(X, topo: Topology, kappa=1.0, geo: Geometry | None = None, area_model="voronoi"):
@@ -211,7 +211,7 @@ class AreaReference:
 
 def reference(X, topo: Topology) -> AreaReference:
     geo = geometry(X, topo)
-    return AreaReference(geo.area.copy(), float(geo.area.sum()), volume(X, topo))
+    return AreaReference(geo.area.copy(), to_float(geo.area.sum()), volume(X, topo))
 
 
 def volume(X, topo: Topology, geo: Geometry | None = None) -> float:
@@ -238,13 +238,13 @@ def local_tension(geo: Geometry, ref: AreaReference, Lambda):
 def global_tension(geo: Geometry, sigma_l) -> float:
     """Area-weighted mean of the local tension (Sec. V.C)."""
     xp = array_module(sigma_l)
-    return float(xp.sum(sigma_l * geo.area) / xp.sum(geo.area))
+    return to_float(xp.sum(sigma_l * geo.area) / xp.sum(geo.area))
 
 
 def tension_energy(geo: Geometry, ref: AreaReference, Lambda) -> float:
     """Area penalty, eq. (A5): Lambda/2 sum (A_l - A_l^0)^2 / A_l^0."""
     xp = array_module(geo.area)
-    return float(0.5 * Lambda * xp.sum((geo.area - ref.face_area) ** 2 / ref.face_area))
+    return to_float(0.5 * Lambda * xp.sum((geo.area - ref.face_area) ** 2 / ref.face_area))
 
 
 def tension_force(geo: Geometry, ref: AreaReference, Lambda, topo: Topology):
@@ -292,7 +292,7 @@ class Membrane:
         g = _bending_corner_gradient(geo, self.topo, self.kappa, self.area_model)
         sig = local_tension(geo, self.ref, self.Lambda) if self.Lambda else 0.0
         if self.K_area:  # global area penalty acts like an extra uniform tension
-            sig = sig + self.K_area * (float(geo.area.sum()) - self.ref.area) / self.ref.area
+            sig = sig + self.K_area * (to_float(geo.area.sum()) - self.ref.area) / self.ref.area
         if self.Lambda or self.K_area:
             g += sig * geo.grad_area
         if self.K_volume:
@@ -302,7 +302,7 @@ class Membrane:
 
     def energies(self, X, geo: Geometry | None = None) -> dict:
         geo = geo or geometry(X, self.topo, self.area_model)
-        A = float(geo.area.sum())
+        A = to_float(geo.area.sum())
         V = volume(X, self.topo, geo)
         out = {
             "bending_energy": bending_energy(X, self.topo, self.kappa, geo, self.area_model),

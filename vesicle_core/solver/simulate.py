@@ -43,6 +43,7 @@ from ..geometry.mesh import vertices_for_edge
 from ..io import hold_run_lock
 from ..model.parameters import CHECKPOINT_WALL_S
 from ..model.run_config import RunConfig
+from ..xp import to_float, to_numpy
 from . import membrane as B
 from .fluctuations import noise_mesh_warning
 from .mobility import IBMSolver
@@ -65,7 +66,7 @@ log = logging.getLogger("vesicle_core.solver.simulate")
 # --------------------------------------------------------------------------- the run
 def _shape_moments(X, xp):
     c = X - X.mean(axis=0)
-    return tuple(float(v) for v in (c * c).mean(axis=0))
+    return tuple(float(v) for v in to_numpy((c * c).mean(axis=0)))
 
 
 class _Progress:
@@ -349,7 +350,7 @@ class _Run:
         """Append the frame at X to the trajectory after the NaN and drift checks; -> its scalars."""
         state, cfg, mem, A0, V0 = self.state, self.cfg, self.mem, self.A0, self.V0
         sig_l = self.integ.face_tension(state, geo)
-        A = float(geo.area.sum())
+        A = to_float(geo.area.sum())
         V = B.volume(X, mem.topo, geo)
         sig = B.global_tension(geo, sig_l) + (cfg.K_area * (A - A0) / A0 if cfg.K_area else 0.0)
         flow_sign = 1.0 if state.phase == "stretch" else -1.0
@@ -362,12 +363,11 @@ class _Run:
         if abs(sc["area_drift"]) > cfg.max_drift or abs(sc["volume_drift"]) > cfg.max_drift:
             self.fail(f"area drift {sc['area_drift']:.3%} or volume drift {sc['volume_drift']:.3%} exceeds "
                       f"max_drift = {cfg.max_drift:g}; lower dt or raise Lambda", X)
-        sc["dt_tau"] = self.dt_step
-        sc["cg_iterations"] = float(state.cg_iterations[-1]) if state.cg_iterations else 0.0
+        sc.update(dt_tau=self.dt_step, cg_iterations=float(state.cg_iterations[-1]) if state.cg_iterations else 0.0)
         q = B.triangle_quality(geo)  # 4 sqrt(3) A / sum l^2, and the triangle strain against the reference mesh
         ref = mem.ref.face_area if state.lipid_area is None else self.xp.asarray(state.lipid_area)
-        sc.update(mesh_quality_min=float(q.min()), mesh_quality_median=float(self.xp.median(q)),
-                  triangle_strain_max=float(self.xp.abs(geo.area / ref - 1).max()))
+        sc.update(mesh_quality_min=to_float(q.min()), mesh_quality_median=to_float(self.xp.median(q)),
+                  triangle_strain_max=to_float(self.xp.abs(geo.area / ref - 1).max()))
         self.writer.append(self.be.asnumpy(X), self.be.asnumpy(sig_l).astype(np.float32), sc)
         state.n_frames += 1
         return sc
@@ -416,7 +416,7 @@ class _Run:
         if self.adaptive and abs(state.t - t_event) < self.eps_t:
             state.t = t_event
         self.steps_this_call += 1
-        if state.step % 16 == 0 and not bool(self.xp.isfinite(state.X).all()):
+        if state.step % 16 == 0 and not bool(to_numpy(self.xp.isfinite(state.X).all())):
             self.fail("NaN or Inf in vertex positions (time step too large?)", X)
         if state.step % cfg.checkpoint_every == 0 or _time.perf_counter() - self.last_checkpoint >= CHECKPOINT_WALL_S:
             self.checkpoint()

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from ..model.run_config import RunConfig
-from ..xp import array_module
+from ..xp import array_module, to_float
 from .membrane import volume, volume_gradient
 from .mobility import IBMSolver
 
@@ -81,17 +81,17 @@ def arnoldi(apply, v, max_iter=40, rtol=1e-3, min_iter=3):
     CuPy) -> (|lam|, its unit Ritz vector (real part), products). Stops once the largest Ritz value changes by less
     than ``rtol`` in two iterations running, after at least ``min_iter``."""
     xp = array_module(v)
-    basis = [v / float(xp.linalg.norm(v))]
+    basis = [v / to_float(xp.linalg.norm(v))]
     H = np.zeros((max_iter + 1, max_iter))
     lam, coef, calm, j = 0.0, np.ones(1), 0, 0
     for j in range(max_iter):
         u = apply(basis[j])
         for _ in range(2):  # Gram-Schmidt twice: the basis stays orthogonal to rounding
             for i in range(j + 1):
-                hij = float(xp.vdot(basis[i], u))
+                hij = to_float(xp.vdot(basis[i], u))
                 H[i, j] += hij
                 u = u - hij * basis[i]
-        H[j + 1, j] = float(xp.linalg.norm(u))
+        H[j + 1, j] = to_float(xp.linalg.norm(u))
         ritz, vecs = np.linalg.eig(H[: j + 1, : j + 1])
         k = int(np.argmax(np.abs(ritz)))
         new = float(abs(ritz[k]))
@@ -102,14 +102,14 @@ def arnoldi(apply, v, max_iter=40, rtol=1e-3, min_iter=3):
             break
         basis.append(u / H[j + 1, j])
     vec = sum(float(c) * b for c, b in zip(coef, basis, strict=False))  # the Ritz vector, built once at the end
-    return lam, vec / float(xp.linalg.norm(vec)), j + 1
+    return lam, vec / to_float(xp.linalg.norm(vec)), j + 1
 
 
 def stiffness_product(solver: IBMSolver, X):
     """v -> M(X) dF/dX v (float64) at the shape X, as stiffest_mode uses it: the force's derivative a centred
     difference in float64, the volume penalty's p Hess(V) v added back, one Stokes solve per product."""
     xp = solver.xp
-    scale = 1e-7 * float(xp.abs(X).max())
+    scale = 1e-7 * to_float(xp.abs(X).max())
     mem = solver.membrane
     pressure = mem.K_volume * (volume(X, mem.topo) - mem.ref.volume) / mem.ref.volume
     # the forces are spread at X itself, not at the displaced shapes: one stencil for every product, valid until

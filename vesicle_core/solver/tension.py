@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, NumericalInstability
-from ..xp import to_numpy
+from ..xp import to_float, to_numpy
 
 CELLS = ("face", "vertex")
 
@@ -181,7 +181,7 @@ class TensionSolver:
 
     def strain_rms(self, r):
         xp = self.xp
-        return float(xp.sqrt(xp.mean((r / self.A0) ** 2)))
+        return to_float(xp.sqrt(xp.mean((r / self.A0) ** 2)))
 
     def solve(self, geo, F, u_inf, area_error, dt, sigma0):
         """Tension sigma and velocity U (V, 3) of one step (see _solve); with the local preconditioner, a solve
@@ -210,7 +210,7 @@ class TensionSolver:
         U = self.mobility.apply(F - self.DT(sigma, geo, self.topo)) + u_inf
         r = dt * self.D(U, geo, self.topo) + area_error - self.A0 * sigma / self.Lambda
         sigma, U, it, res, res0 = pcg(sigma, U, r, lambda p: self.operator(p, geo, dt),
-                                      lambda r: self._precondition(r, geo, dt), lambda a, b: float(xp.sum(a * b)),
+                                      lambda r: self._precondition(r, geo, dt), lambda a, b: to_float(xp.sum(a * b)),
                                       self.strain_rms, self.tol, self.maxiter)
         if self.local is not None:
             self.local.solve_done()
