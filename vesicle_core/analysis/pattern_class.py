@@ -31,12 +31,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from .morphology import Morphology, characteristic_degree, ec_asymmetry, low_degree_fraction, _vertex_field
+from ..geometry.surface import _as_mesh
 from .crest_order import crest_alignment
 from .excursion import euler_curve
-from .morphology import DEFAULT_LEVELS
+from .morphology import (
+    DEFAULT_LEVELS,
+    Morphology,
+    _vertex_field,
+    characteristic_degree,
+    ec_asymmetry,
+    low_degree_fraction,
+)
 from .pattern_synth import CLASSES, sample
-from ..geometry.surface import _as_mesh
 
 __all__ = ["Thresholds", "THRESHOLDS", "FEATURES", "features", "classify", "classify_features", "calibrate",
            "calibration_sample", "confusion"]
