@@ -57,11 +57,14 @@ def test_features_of_a_sample(meshes):
 @pytest.mark.slow
 @pytest.mark.parametrize("flip", [False, True])
 def test_accuracy_is_at_least_95_percent_per_class(meshes, flip):
-    """20 fields per class, mesh level and noise level (0, 0.1, 0.2): 120 per class, fresh seeds; with flip the
-    fields are negated and counted under the negated class."""
-    table = confusion(meshes, n_per_cell=20, seed=99 + 10 * flip, flip=flip)
+    """20 fields per class, mesh level (4, 5) and noise level (0, 0.1, 0.2): 120 per class, seeds 99-110 (not the
+    calibration's); with flip the fields are negated and counted under the negated class. Measured (the table of
+    docs/explanation/morphology.md): 119/120 labyrinths (one read as herringbone), 120/120 for every other class;
+    flipped: 120/120 for every class."""
+    tables = [confusion([m], n_per_cell=20, seed=99 + i + 10 * flip, flip=flip) for i, m in enumerate(meshes)]
     for c in CLASSES:
-        assert table[c][c] >= 0.95 * sum(table[c].values()), (c, table[c])
+        right = sum(t[c][c] for t in tables)
+        assert right >= 0.95 * sum(sum(t[c].values()) for t in tables), (c, [t[c] for t in tables])
 
 
 @pytest.mark.slow
