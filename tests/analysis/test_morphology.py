@@ -86,3 +86,20 @@ def test_bad_input_is_refused(sphere):
         morphology_metrics(v, f, v[:, 0], scales=(-1.0,))
     with pytest.raises(ConfigError, match="NaN"):
         morphology_metrics(v, f, np.full(len(v), np.nan))
+
+
+@pytest.mark.parametrize("cls", ["ripples", "hexagons_up", "labyrinth"])
+def test_a_wrinkled_ellipsoidal_vesicle_gives_back_its_wrinkles_and_their_class(cls):
+    """r = r_ell (1 + eps w): the height about the fitted ellipsoid is eps r_ell w (correlation > 0.99), and the
+    classifier names the pattern the wrinkles were drawn from."""
+    from vesicle_core.analysis.morphology import height_about_ellipsoid
+    from vesicle_core.analysis.pattern_class import classify
+
+    v0, f = icosphere(5)
+    w = ps.sample(cls, v0, np.random.default_rng(3), k=13)
+    ell = ellipsoid_from_sphere(v0, f, axes=(1.3, 0.8, 0.95))
+    v = ell * (1 + 0.01 * w)[:, None]
+    h, fit = height_about_ellipsoid(v, f)
+    expect = 0.01 * w * np.linalg.norm(ell, axis=1)
+    assert np.corrcoef(h, expect)[0, 1] > 0.99
+    assert classify(v, f, h) == cls

@@ -1,8 +1,8 @@
 """Morphology of the wrinkles: the metrics of one height field h about the fitted ellipsoid, in one call.
 
-h is the radial deviation A_p from the fitted ellipsoid (Sec. V.C; :func:`.shape.wrinkle_amplitude` with
-``at="vertices"``), or any vertex (or triangle) field on a closed triangulated surface. The metrics, each defined
-in its own module:
+h is the radial deviation A_p from the fitted ellipsoid (Sec. V.C; :func:`height_about_ellipsoid` fits the
+ellipsoid as :func:`.shape.analyze_snapshot` does and returns A_p at the vertices), or any vertex (or triangle)
+field on a closed triangulated surface. The metrics, each defined in its own module:
 
 * characteristic degree l_c and wavelength: l_c (l_c + 1) / R^2 = int |grad h|^2 dA / int h^2 dA (the spectrum's
   mean of l(l+1), exact for a field of one degree on a sphere of radius R = sqrt(A / 4 pi)); wavelength
@@ -30,13 +30,14 @@ from ..geometry.ylm import project
 from .crest_order import CrestOrder, crest_alignment, crest_order
 from .excursion import euler_curve
 from .harmonics import quadrature
+from .shape import fit_ellipsoid, wrinkle_amplitude
 from .surface_calculus import HeatSmoother, edge_angles, face_gradients, tangent_frames, vertex_areas
 
 DEFAULT_LEVELS = (-2.0, -1.5, -1.0, -0.5, 0.5, 1.0, 1.5, 2.0)
 DEFAULT_SCALES = (0.5, 1.0, 2.0)
 
-__all__ = ["Morphology", "morphology_metrics", "ec_asymmetry", "characteristic_degree", "low_degree_fraction",
-           "DEFAULT_LEVELS", "DEFAULT_SCALES"]
+__all__ = ["Morphology", "morphology_metrics", "height_about_ellipsoid", "ec_asymmetry", "characteristic_degree",
+           "low_degree_fraction", "DEFAULT_LEVELS", "DEFAULT_SCALES"]
 
 
 @dataclass
@@ -148,3 +149,11 @@ def morphology_metrics(vertices, faces, h, *, scales=DEFAULT_SCALES, levels=DEFA
     return Morphology(l_c=l_c, wavelength=lam, rms=rms, levels=np.asarray(levels, float), euler=chi,
                       ec_asymmetry=ec_asymmetry(levels, chi), low_degree_fraction=low_degree_fraction(v, f, x, low_l),
                       crest_alignment=P, crest_axis=axis, scales=tuple(scales), orders=orders)
+
+
+def height_about_ellipsoid(vertices, faces) -> tuple[np.ndarray, tuple]:
+    """(h, ellipsoid): A_p per vertex, the radial deviation from the ellipsoid fitted with vertex-area weights, as
+    :func:`.shape.analyze_snapshot` fits it (Sec. V.C). The input of :func:`morphology_metrics` for a snapshot."""
+    v, f = _as_mesh(vertices, faces)
+    ell = fit_ellipsoid(v, weights=vertex_areas(v, f))
+    return wrinkle_amplitude(v, f, ell, at="vertices"), ell
