@@ -5,7 +5,8 @@ Energy density: e = h^2 per vertex (h the height about the fitted ellipsoid, A_p
 (:class:`~.surface_calculus.HeatSmoother`, default sigma = the wavelength of :func:`.morphology.characteristic_degree`)
 so that it measures the local wrinkle amplitude squared and not the crest/trough oscillation.
 
-Bands: latitude about ``axis`` (the flow's compressional axis, or the fitted ellipsoid's long axis), folded over
+Bands: latitude about ``axis`` (the flow's compressional axis: x after the reversal, where the background flow
+-gamma_dot (x, -y, 0) of :mod:`vesicle_core.model.flow` compresses the vesicle along its long axis), folded over
 the equator, in equal-area bands of |cos theta_a| (area is uniform in cos theta on a sphere): band 0 is the
 equatorial belt, band n-1 the two polar caps. Per band: area fraction, energy fraction (share of int e dA),
 enrichment = energy fraction / area fraction (1 everywhere for a uniformly wrinkled vesicle; > 1 at the poles for
