@@ -90,3 +90,11 @@ def test_accuracy_on_quasi_uniform_meshes(flip):
     for c in CLASSES:
         right = sum(t[c][c] for t in tables)
         assert right >= 0.95 * sum(sum(t[c].values()) for t in tables), (c, [t[c] for t in tables])
+
+
+def test_a_morphology_record_classifies_like_the_field(meshes):
+    from vesicle_core.analysis.morphology import morphology_metrics
+
+    v, f = meshes[0]
+    h = sample("hexagons_down", v, np.random.default_rng(9), noise=0.1)
+    assert classify_features(morphology_metrics(v, f, h, scales=(0.5,))) == classify(v, f, h) == "hexagons_down"
