@@ -57,7 +57,7 @@ CASES = {
     "tension_modes": (["{det}", "--time", "0.025"], "[10, 100)"),
     "tension_spectrum": (["{det}", "--l-max", "4"], "cb_raw cb_low"),
     "thermal_diffusion": (["--N", "16", "--steps", "20", "--markers", "2", "--lag", "5"], "| sharp | 0."),
-    "thermal_equilibrium": (["{hot}", "--l-max", "4"], "| 4 |"),
+    "thermal_equilibrium": (["{hot}", "--l-max", "6"], "| 6 |"),  # l_max >= 5: it fits l = 3..l_max - 2
     "vesicle_diffusion": (["{hot}", "--lags", "0.002"], "| pooled |"),
 }
 
