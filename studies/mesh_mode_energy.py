@@ -7,7 +7,7 @@ second variation of the mesh's bending energy (eq. 25) and area along r = 1 + ep
 kappa (l-1) l (l+1) (l+2) and (l-1)(l+2); mean over m and the range over m. A ratio below 1 means the mesh makes
 the mode cheaper: a thermal run on it has larger amplitudes than the continuum formula at the same tension.
 
-Feeds docs/history/thermal.md, "The mesh's own equilibrium, the step, and the noise scheme".
+Feeds docs/history/thermal.md, "The mesh's own equilibrium, the step, and the noise scheme (2026-12-05)".
 """
 
 from __future__ import annotations

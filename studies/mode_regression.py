@@ -21,7 +21,8 @@ This tests "mode autocorrelation times equal to the same grid's deterministic re
 space, ALE, mesh and coupling of the run itself, where ``thermal_equilibrium.py`` compares with the clean interface's
 rate ratio r_l of the resolution table.
 
-Feeds docs/history/thermal.md, "The sharp coupling at equilibrium: spectrum and mode times" (Onsager regression).
+Feeds docs/history/thermal.md, "The sharp coupling at equilibrium: spectrum and mode times (2026-12-07)" (Onsager
+regression).
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ Euler-Maruyama in the fixed grid frame, X <- X + J(X) dU with dU the noise field
   over the shifts (the systematic part) with its radial component; next to it the self-mobility's relative spread
   over sub-grid positions (the kernel's translation-invariance error).
 
-Feeds docs/history/thermal.md, "3. Diffusion of a free marker in the periodic box, and the Ito drift".
+Feeds docs/explanation/thermal-noise.md, "3. Diffusion of a free marker in the periodic box, and the Ito drift".
 """
 
 from __future__ import annotations
