@@ -17,7 +17,7 @@ has no tangential part, so a tangential mesh-scale force would be a discretisati
 checkerboard measure over 0 <= gamma_dot t <= 0.5 on the solved tension at every step (worst, median, fraction of
 steps above 0.3 of the rms; median over the standard deviation), triangle and dual-cell strains, l_*.
 ``--free k`` leaves the k weakest patterns of D D^T (the triangle-area patterns that vertex motion changes least,
-where the checkerboard lives: benchmarks/tension_modes.py) out of the triangle constraint, to measure what not
+where the checkerboard lives: studies/tension_modes.py) out of the triangle constraint, to measure what not
 holding their areas costs.
 Quote timings with what else ran on the machine.
 """

@@ -11,7 +11,7 @@ Per trajectory, over every frame (the worst frame is quoted):
 - mesh quality 4 sqrt(3) A / sum l^2 per triangle (1 equilateral), min and median;
 - the raw tension's checkerboard measure (rms difference of the vertex-averaged tension between neighbouring
   vertices over its rms) in every frame after the reversal (gamma_dot t >= 0), and the share of its variance beyond
-  the mesh's resolvable l (Y_lm projection, centroid rule, as benchmarks/tension_spectrum.py);
+  the mesh's resolvable l (Y_lm projection, centroid rule, as studies/tension_spectrum.py);
 - with --ref: l_*, t_* and the rms difference of Delta_2(t) over 0 <= gamma_dot t <= 1 against the reference run.
 
 --inf-sup: the discrete inf-sup constant min |D^T B c| / |B c| (tension_harmonic.inf_sup; continuum 2 / R) of the

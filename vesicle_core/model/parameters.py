@@ -418,7 +418,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "float",
         "thermal noise, adaptive dt: the largest rms noise displacement per step and component, in grid spacings h "
         "(dt <= (noise_step h)^2 / (2 kT m_self), m_self the markers' self-mobility; runs stop from ~0.06 on, "
-        "benchmarks/noise_step_limit.py; 1 leaves the step to the other limits)",
+        "studies/noise_step_limit.py; 1 leaves the step to the other limits)",
         "h",
         0.0,
         1.0,

@@ -1,7 +1,7 @@
 """The IBM's mean membrane tension in the stationary stretched state against the PA's (S - Gamma_2) / A_2.
 
 Run by hand (mesh + stretch-only runs + table, from scratch; finished runs under --out are reused):
-    python benchmarks/stationary_tension.py [--deltas 0.03 0.06 0.116] [--L 5 7.03125] [--h 0.078125]
+    python studies/stationary_tension.py [--deltas 0.03 0.06 0.116] [--L 5 7.03125] [--h 0.078125]
         [--S 553] [--n-vertices 642] [--stretch 1.0] [--set KEY=VALUE ...] [--out DIR] [--json FILE]
 
 Every point runs the forward (stretching) flow only, for --stretch strain units, then 0.02 after the reversal
@@ -24,12 +24,14 @@ Per Delta with two or more boxes: sigma_inf from each pair of neighbouring boxes
 (sigma(L) = sigma_inf + c / L^3, periodic images), against the larger box's PA values; with three boxes the two
 pairs' agreement tests that law.
 The study in docs/history/solver.md ("The stationary tension against the PA") ran
-    python benchmarks/stationary_tension.py --deltas 0.03 0.06 0.116 0.2 --L 5 7.03125 9.375
-    python benchmarks/stationary_tension.py --deltas 0.03 0.06 0.116 0.2 --L 5 --set Lambda=1e8 --set cg_maxiter=1000
-    python benchmarks/stationary_tension.py --deltas 0.116 0.03 0.2 --L 5 --h 0.0390625 --n-vertices 2562
+    python studies/stationary_tension.py --deltas 0.03 0.06 0.116 0.2 --L 5 7.03125 9.375
+    python studies/stationary_tension.py --deltas 0.03 0.06 0.116 0.2 --L 5 --set Lambda=1e8 --set cg_maxiter=1000
+    python studies/stationary_tension.py --deltas 0.116 0.03 0.2 --L 5 --h 0.0390625 --n-vertices 2562
 (13, 70, 125 s per run at N = 64, 90, 120 with 642 vertices; ~55 s at Lambda = 1e8; 156-179 s at N = 128 with
 2562 vertices; one run at a time beside another job on a 2-core machine).
 Quote timings with what else ran on the machine.
+
+Feeds docs/history/solver.md, "The stationary tension against the PA: periodic images, excess area, grid".
 """
 
 import os

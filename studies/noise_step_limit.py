@@ -1,6 +1,6 @@
 """Which rms noise displacement per step a noisy inextensible run survives: the scan behind ``noise_step``.
 
-    python benchmarks/noise_step_limit.py --N 64 --vertices 2379 --kT 0.405 --noise-step 0.02 0.04 0.08 \
+    python studies/noise_step_limit.py --N 64 --vertices 2379 --kT 0.405 --noise-step 0.02 0.04 0.08 \
         --seeds 0 1 --steps 300 > scan.md
 
 Each row is the first ``--steps`` steps of the wrinkling case (S, Delta = 0.116, L = 5 R, sharp coupling, harmonic
@@ -11,6 +11,9 @@ step where it stopped is printed). The dt column is the median step taken and th
 displacement per component at that step, sqrt(2 kT dt m_self) / h: where the cap binds it equals noise_step, where
 it does not the other limits (flow, tension, growth) were shorter. A limit of the form "displacement per step <=
 c h" is supported if the survival threshold in that column is the same across kT and N.
+
+Feeds docs/history/thermal.md, "The noise's step limit (`noise_step`)", and the range of the run parameter
+noise_step.
 """
 
 from __future__ import annotations

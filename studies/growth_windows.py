@@ -1,6 +1,6 @@
 """Growth rate per l in time windows after the reversal: where two runs of a ladder part.
 
-    python benchmarks/growth_windows.py SPECTRA.nc [SPECTRA.nc ...] [--windows 0 0.04 0.08 0.12 0.16] [--l 16 20 ...]
+    python studies/growth_windows.py SPECTRA.nc [SPECTRA.nc ...] [--windows 0 0.04 0.08 0.12 0.16] [--l 16 20 ...]
 
 Each file is a spectra dataset (``vesicle decompose``) or a PA solution (``vesicle theory``): both carry time
 (gamma_dot (t - t0)), Delta_l (time, l) and sigma (time). For each window [a, b] it prints the mean rate
@@ -8,6 +8,8 @@ ln(Delta_l(b) / Delta_l(a)) / (b - a) per l, in units of gamma_dot (the frames n
 tension over the frames inside the window. A linear mode's rate is set by the tension and the bending at its l;
 two rungs whose rates agree in the first window and part later differ in the nonlinear stage, not in the linear
 operator (docs/history/solver.md, "Wrinkling ladders with the sharp coupling").
+
+Feeds docs/history/solver.md, "Wrinkling ladders with the sharp coupling" (where two rungs part, in time).
 """
 
 from __future__ import annotations

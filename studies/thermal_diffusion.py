@@ -1,6 +1,6 @@
 """Diffusion of free markers under the thermal noise alone, against Hasimoto, and the size of the Ito drift div M.
 
-    python benchmarks/thermal_diffusion.py [--steps 4000] [--N 16 32] > numbers.md
+    python studies/thermal_diffusion.py [--steps 4000] [--N 16 32] > numbers.md
 
 For each grid N (box L = N h, h = 1, kT = 1, mu = 1) and coupling (kernel: Peskin 4-point; sharp: the window
 deconvolution at floor 0.01), ``--markers`` passive markers start on a lattice (spacing L / 2) and move by
@@ -17,6 +17,8 @@ Euler-Maruyama in the fixed grid frame, X <- X + J(X) dU with dU the noise field
   of an icosphere of radius 4 h (162 vertices, edges ~1.2 h) at 4 random sub-grid shifts, and the per-vertex mean
   over the shifts (the systematic part) with its radial component; next to it the self-mobility's relative spread
   over sub-grid positions (the kernel's translation-invariance error).
+
+Feeds docs/explanation/thermal-noise.md, "3. Diffusion of a free marker in the periodic box, and the Ito drift".
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Equilibrium shape spectrum and mode autocorrelation times of a noisy IBM run without flow (chi = 0).
 
-    python benchmarks/thermal_equilibrium.py TRAJECTORY.nc [--burn-in 0.2] [--l-max L] > numbers.md
+    python studies/thermal_equilibrium.py TRAJECTORY.nc [--burn-in 0.2] [--l-max L] > numbers.md
 
 Make the run with ``vesicle run`` (chi: 0, stretch: 0, scheme: inextensible, kT > 0; docs/history/thermal.md section 6
 gives the configuration used). Every frame after the burn-in fraction is decomposed (``harmonics.decompose``,
@@ -24,6 +24,8 @@ at 16). Printed per l:
   mesh size, kernel and coupling (``validation.relaxation.mode_rate``, clean interface), and for reference with
   the fitted damping law (theory.grid_damping, fitted at an edge of ~2h). The autocorrelation is resolved only
   where it is several frames long: make the frames dense (output_every ~ 2 steps).
+
+Feeds docs/history/thermal.md, "7. The IBM at equilibrium: shape spectrum, mode times, the vesicle's diffusion".
 """
 
 from __future__ import annotations

@@ -1,11 +1,11 @@
 """Brownian motion of a whole vesicle in the periodic box: its centroid's diffusion against the grid's own
 translational mobility and against Hasimoto.
 
-    python benchmarks/vesicle_diffusion.py TRAJECTORY.nc [TRAJECTORY.nc ...] [--lags 0.01 0.05 0.2] > numbers.md
+    python studies/vesicle_diffusion.py TRAJECTORY.nc [TRAJECTORY.nc ...] [--lags 0.01 0.05 0.2] > numbers.md
 
-Each trajectory is a noisy run without flow (chi = 0, kT > 0; docs/history/thermal.md section 7). Measured: D =
-MSD(lag) /
-(6 lag) of the volume centroid (overlapping windows), error bar from 8 time blocks, pooled over the files.
+Each trajectory is a noisy run without flow (chi = 0, kT > 0; docs/history/thermal.md section 7). Measured:
+D = MSD(lag) / (6 lag) of the volume centroid (overlapping windows), error bar from 8 time blocks, pooled over the
+files.
 
 Predicted, from the run's own discretisation (the first file's first frame, N, L, kernel and coupling):
 
@@ -22,6 +22,8 @@ Predicted, from the run's own discretisation (the first file's first frame, N, L
   ``--no-constrained`` skips it, 3 constrained solves and 6 V centroid evaluations).
 
 Lags are in tau (rounded to whole frames of each file); the pooled row averages the files at the same lag.
+
+Feeds docs/history/thermal.md, "7. The IBM at equilibrium: shape spectrum, mode times, the vesicle's diffusion".
 """
 
 from __future__ import annotations

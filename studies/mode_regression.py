@@ -1,7 +1,7 @@
 """Onsager regression at equilibrium: the noisy run's mode autocorrelation times against the deterministic
 relaxation of the same discretisation, started from the run's own frames.
 
-    python benchmarks/mode_regression.py TRAJECTORY.nc [--starts 4] [--span 0.006] [--l-max 16] > numbers.md
+    python studies/mode_regression.py TRAJECTORY.nc [--starts 4] [--span 0.006] [--l-max 16] > numbers.md
 
 TRAJECTORY is a noisy run without flow at a fixed tension (``tension_fixed``, chi = 0, kT > 0; docs/history/thermal.md
 section 7). ``--starts`` frames from its second half are each taken as the start of a run with the trajectory's own
@@ -20,6 +20,9 @@ hypothesis), so per l:
 This tests "mode autocorrelation times equal to the same grid's deterministic relaxation" with the membrane, tension
 space, ALE, mesh and coupling of the run itself, where ``thermal_equilibrium.py`` compares with the clean interface's
 rate ratio r_l of the resolution table.
+
+Feeds docs/history/thermal.md, "The sharp coupling at equilibrium: spectrum and mode times (2026-12-07)" (Onsager
+regression).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Stochastic PA report: l_*, l_peak and t_* over seeds, against the deterministic PA, for kT, l_max, grid, step.
 
-    python benchmarks/stochastic_pa.py [--seeds 16] [--steps 4000] > numbers.md
+    python studies/stochastic_pa.py [--seeds 16] [--steps 4000] > numbers.md
 
 Delta = 0.116, S = 553 and 2224 (the paper's quasi-spherical pair). Rows (each over the same ``--seeds`` seeds):
 
@@ -16,6 +16,8 @@ Then the equilibrium spectrum of the free vesicle (S = 0, Delta = 0.04, l_max = 
 2 tau each after a burn-in of 0.1 tau) at two steps:
 measured <|u_lm|^2> over kT / (kappa Delta [l(l+1) + <sigma>]), and the exact fixed-area ensemble (rejection
 sampling) over the same formula at the mean-field tension: what the constraint alone does to the spectrum.
+
+Feeds docs/history/thermal.md, "6. The stochastic PA: eqs. (11)-(12) with their thermal forcing".
 """
 
 from __future__ import annotations
@@ -69,14 +71,14 @@ def wrinkling(seeds, steps):
                 print(f"<!-- S={S:g} l_star per seed: {np.round(run.l_star, 2).tolist()} -->", flush=True)
 
 
-def equilibrium_table(n_seeds):
+def equilibrium_table(n_seeds, n_steps=10000):
     print()
     print("| ds | <sigma> | mean-field sigma | sd(sigma) per step | ratio l = 2 | 3 | 4 | 6 | 8 | 12 | 16 | max se |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     # other seeds at the second step: the same seeds would draw the same deviates and correlate the two rows
-    for first, ds, n in ((0, 2e-4, 10000), (n_seeds, 1e-4, 20000)):
+    for first, ds, n in ((0, 2e-4, n_steps), (n_seeds, 1e-4, 2 * n_steps)):
         eq = SP.equilibrium(0.04, l_max=16, seeds=range(first, first + n_seeds), ds=ds, n_steps=n,
-                            burn_in=int(0.1 / ds),
+                            burn_in=min(int(0.1 / ds), n // 2),  # 0.1 tau, or half of a short row
                             kT_over_kappa=KT)
         th = SP.equilibrium_variance(eq["l"][2:], eq["sigma_mean"], 0.04, KT)
         ratio = dict(zip(range(2, 17), eq["var"][2:] / th, strict=True))
@@ -106,17 +108,20 @@ def constrained_reference(draws=4_000_000, width=0.01, seed=5):
           f"{np.sqrt(2 / (5 * n)):.4f} |", flush=True)
 
 
-def main():
+def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=16)
     ap.add_argument("--equilibrium-seeds", type=int, default=64)
     ap.add_argument("--steps", type=int, default=4000)
+    ap.add_argument("--equilibrium-steps", type=int, default=10000, help="steps of the first equilibrium row "
+                    "(the second, at half the step, takes twice as many)")
+    ap.add_argument("--draws", type=int, default=4_000_000, help="Gaussian draws of the fixed-area ensemble")
     ap.add_argument("--skip-equilibrium", action="store_true")
-    a = ap.parse_args()
+    a = ap.parse_args(argv)
     wrinkling(tuple(range(a.seeds)), a.steps)
     if not a.skip_equilibrium:
-        equilibrium_table(a.equilibrium_seeds)
-        constrained_reference()
+        equilibrium_table(a.equilibrium_seeds, a.equilibrium_steps)
+        constrained_reference(a.draws)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """The tension operator's eigenmodes at one frame: which modes carry the checkerboard, and what freeing them costs.
 
 Run by hand on a finished inextensible trajectory (one Stokes solve per triangle: minutes at 2562 vertices):
-    python benchmarks/tension_modes.py TRAJECTORY.nc --time 0.26
+    python studies/tension_modes.py TRAJECTORY.nc --time 0.26
 
 At the frame nearest ``--time`` (gamma_dot t) the dense operator D M D^T of the tension solve is built column by
 column (float64) and diagonalised in the metric of the reference areas W: rho_i are the area rates per unit
@@ -21,6 +21,8 @@ tension is expanded in these modes. Per band of g the script prints
   were left out of the constraint (cb_wo is the tension without them), their triangle areas would drift at that
   rate, and over the wrinkling phase (0 <= gamma_dot t <= 0.5) by the printed rms / max strain if the rate
   stayed as at this frame.
+
+Feeds docs/history/solver.md, "What the checkerboard is, and why the two criteria conflict on this discretisation".
 """
 
 import os
@@ -37,7 +39,8 @@ from vesicle_core.geometry import surface as Sf
 from vesicle_core.model.flow import background_velocity
 from vesicle_core.solver.tension import TensionSolver, face_D_matrix, face_DT, vertex_mean
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+# load_case (a trajectory and the float64 solver of its case) is shared with the timing scripts in benchmarks/
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "benchmarks"))
 from bench_tension_sources import edges, load_case  # noqa: E402
 
 BANDS = [(0, 0.3), (0.3, 1), (1, 3), (3, 10), (10, 100), (100, np.inf)]

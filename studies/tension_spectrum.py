@@ -1,7 +1,7 @@
 """Where the inextensible tension's variation sits in l: wrinkle scale or mesh scale (issue 10's checkerboard).
 
 Run by hand on a finished trajectory:
-    python benchmarks/tension_spectrum.py TRAJECTORY.nc [--t-min 0] [--t-max 0.5] [--l-max 0]
+    python studies/tension_spectrum.py TRAJECTORY.nc [--t-min 0] [--t-max 0.5] [--l-max 0]
 
 The checkerboard measure (rms difference of the vertex-averaged tension between neighbouring vertices over its
 rms) cannot tell a mesh-scale checkerboard from a smooth tension that varies on the wrinkles' own scale: a wave
@@ -14,6 +14,8 @@ edge) and reports
 - the checkerboard measure of the raw tension and of its l <= L/2 part (harmonics.resolved_field, at the
   vertices), both over the rms of the raw vertex-averaged tension.
 A tension that varies with the wrinkles has its variance near l_peak; a checkerboard has it above L.
+
+Feeds docs/history/solver.md, "What the checkerboard is, and why the two criteria conflict on this discretisation".
 """
 
 import os
@@ -21,7 +23,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
-import sys
 
 import numpy as np
 import xarray as xr
@@ -29,11 +30,9 @@ import xarray as xr
 from vesicle_core.analysis import harmonics as H
 from vesicle_core.geometry import surface as Sf
 from vesicle_core.geometry import ylm as Yl
+from vesicle_core.geometry.mesh import unique_edges as edges  # noqa: E402
 from vesicle_core.solver import membrane as B
 from vesicle_core.solver.tension import vertex_mean
-
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_tension_sources import edges  # noqa: E402
 
 
 def analyse(path, t_min, t_max, l_max):

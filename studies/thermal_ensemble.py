@@ -2,13 +2,15 @@
 discretisation, the stochastic PA and the deterministic PA on the same grid, and the cost of the noise.
 
     snakemake --cores 2 results/fits/lstar_vs_S.nc results/catalog.csv --configfile config/thermal.yaml
-    python benchmarks/thermal_ensemble.py results/catalog.csv [--kT 0.0405] [--pa-seeds 16] > numbers.md
+    python studies/thermal_ensemble.py results/catalog.csv [--kT 0.0405] [--pa-seeds 16] > numbers.md
 
 The IBM numbers come from the catalog through ``open_sweep`` (the ensemble stacked along ``noise_seed``, the
 deterministic runs selected by kT = 0). The PA rows use the runs' grid (h = L/N, their kernel and coupling, through
 theory.grid_damping) and the spectra's l_max, so that eq. (31) sums over the same modes (docs/history/thermal.md,
 section 6: under noise l_* depends on l_max). The cost columns read each trajectory's attributes: wall time, steps,
 Stokes solves of the main tension solve and of the noise (field and drift).
+
+Feeds docs/history/thermal.md, "8. Wrinkling with noise in the IBM: an ensemble in the workflow".
 """
 
 from __future__ import annotations

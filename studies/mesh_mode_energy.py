@@ -1,11 +1,13 @@
 """What a shape mode costs on a triangle mesh against the continuum (validation.mode_energy.mode_stiffness).
 
-    python benchmarks/mesh_mode_energy.py MESH.nc [MESH.nc ...] [--l-max 16] > numbers.md
+    python studies/mesh_mode_energy.py MESH.nc [MESH.nc ...] [--l-max 16] > numbers.md
 
 For each mesh file (``vesicle mesh``; its vertices are projected onto the unit sphere) and l = 2..l_max: the
 second variation of the mesh's bending energy (eq. 25) and area along r = 1 + eps Y_lm at fixed volume, over
 kappa (l-1) l (l+1) (l+2) and (l-1)(l+2); mean over m and the range over m. A ratio below 1 means the mesh makes
 the mode cheaper: a thermal run on it has larger amplitudes than the continuum formula at the same tension.
+
+Feeds docs/history/thermal.md, "The mesh's own equilibrium, the step, and the noise scheme (2026-12-05)".
 """
 
 from __future__ import annotations
