@@ -6,6 +6,15 @@ parameter tables of config/README.md are generated from these tables by :mod:`ve
 (``python -m vesicle_core.model.parameter_docs --write``), and tests/model/test_parameters.py fails when any of them
 drifts. ``vesicle params`` prints the tables with defaults.
 Cross-parameter rules (N even, no inextensible scheme at Re > 0, ...) live in ``RunConfig.__post_init__``.
+
+The defaults are the recommended method, the discretisation of the default job (config/config.yaml) whose l_*
+converged at N = 128 by the 3% rule: the inextensible scheme with the harmonic tension and the quality ALE, the sharp
+coupling with the 6-point kernel, the PA's thermal seed, on a quasi-uniform mesh of edge ~h (9512 vertices at N = 128,
+L = 5 R). So ``vesicle mesh`` then ``vesicle run`` without options, and ``RunConfig()``, run what the default job
+runs; tests/model/test_defaults.py fails when config/config.yaml and these tables disagree on a key that config.yaml
+does not list, with its reason, under ``differs_from_default``. The paper's own method (explicit scheme, kernel
+coupling, Peskin's 4-point kernel, mesh-noise seed, a mesh of edge ~2h) is :data:`PAPER_METHOD` and
+config/paper_method.yaml.
 """
 
 from __future__ import annotations
@@ -13,7 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import ConfigError, check_range
-from .resolution import DEFAULT_KERNEL, KERNELS
+from .resolution import KERNELS
 
 
 def _yaml_number_hint(text) -> str:
@@ -129,7 +138,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     Parameter(
         "chi", 67.0, "float", "dimensionless extensional rate gamma_dot mu R^3 / kappa", "1", 0.0, 1e7, workflow=False
     ),
-    Parameter("N", 32, "int", "grid nodes per axis", "", 8, 4096, multiple_of=2),
+    Parameter("N", 128, "int", "grid nodes per axis", "", 8, 4096, multiple_of=2),
     Parameter(
         "L",
         5.0,
@@ -172,7 +181,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "kernel",
-        DEFAULT_KERNEL,
+        "bao6",
         "str",
         "regularised delta: Peskin's 4-point (eq. 27), Roma-Peskin-Berger 3-point, "
         "Bao-Kaye-Peskin 6-point (kernels.py)",
@@ -180,7 +189,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "coupling",
-        "kernel",
+        "sharp",
         "str",
         "fluid-membrane coupling. kernel: spread and interpolate with the kernel (eqs. 16, 28; the paper's); "
         "sharp: also divide the spread force's spectrum by the kernel's squared Fourier transform, floored at "
@@ -200,7 +209,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "scheme",
-        "projection",
+        "inextensible",
         "str",
         "time integrator (integrators.py). explicit: the paper's area penalty alone; "
         "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
@@ -226,7 +235,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         0.0,
         1.0,
     ),
-    Parameter("t_end", 1.5, "float", "duration after the reversal", "gamma_dot t", 0.0, 1e4),
+    Parameter("t_end", 1.0, "float", "duration after the reversal", "gamma_dot t", 0.0, 1e4),
     Parameter(
         "dt",
         "power",
@@ -326,7 +335,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "tension_space",
-        "triangle",
+        "harmonic",
         "str",
         "inextensible: the tension's space. triangle: one tension per triangle, every triangle's area held "
         "(near-null checkerboard modes); harmonic: a Galerkin tension in real spherical harmonics up to "
@@ -347,7 +356,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "mesh_ale",
-        "none",
+        "quality",
         "str",
         "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
         "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain; shape also "
@@ -384,7 +393,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "seed_spectrum",
-        "mesh",
+        "thermal",
         "str",
         "wrinkle seed at the reversal: mesh noise only, or the PA's thermal spectrum (seeding.py)",
         choices=("mesh", "thermal"),
@@ -447,19 +456,21 @@ MESH_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "level",
-        3,
+        4,
         "int",
-        "icosphere level: 10 4^level + 2 vertices (42, 162, 642, 2562, 10242, 40962 ...); also the "
-        "default vertex count of the quasi-uniform family",
+        "icosphere level: 10 4^level + 2 vertices (42, 162, 642, 2562, 10242, 40962 ...); also the vertex count of "
+        "the quasi-uniform family when n_vertices is null (`vesicle mesh --level` without --n-vertices)",
         "",
         0,
         9,
     ),
     Parameter(
         "n_vertices",
-        None,
+        9512,
         "int",
-        "vertex count of the quasi-uniform family (null: that of level); ignored by the icosphere",
+        "vertex count of the quasi-uniform family (null: that of level); ignored by the icosphere. The default, "
+        "9512, is a mean edge of ~h on the default grid (N = 128, L = 5 R: mesh.vertices_for_edge), what the sharp "
+        "coupling needs",
         "",
         12,
         20000000,
@@ -478,6 +489,20 @@ MESH_PARAMETERS: tuple[Parameter, ...] = (
         lo_open=True,
     ),
 )
+
+#: the run parameters of the paper's own method (Secs. II-IV), where they differ from the defaults: the explicit
+#: scheme (the area penalty alone), the kernel coupling with Peskin's 4-point kernel (eqs. 16, 27, 28), the
+#: barycentric vertex area, and no seed but the mesh's own noise (the paper's IBM has no thermal noise). It needs a
+#: mesh of edge ~2h (the paper: 26 070 vertices at 512^3; 2562 at N = 128). config/paper_method.yaml runs it.
+PAPER_METHOD = {
+    "scheme": "explicit",
+    "coupling": "kernel",
+    "kernel": "peskin4",
+    "area_model": "barycentric",
+    "seed_spectrum": "mesh",
+    "tension_space": "triangle",
+    "mesh_ale": "none",
+}
 
 RUN = {p.name: p for p in RUN_PARAMETERS}
 MESH = {p.name: p for p in MESH_PARAMETERS}
