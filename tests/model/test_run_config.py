@@ -124,3 +124,6 @@ def test_from_attrs_reads_a_missing_key_as_its_default_of_the_time():
         "kernel", "peskin4", "triangle", "none", "mesh", 1.5)
     assert old.N == 64 and old.scheme == "inextensible"  # what the file records wins
     assert all(RunConfig().__getattribute__(k) != v for k, v in DEFAULTS_BEFORE_RECOMMENDED.items())
+    from vesicle_core.model.run_config import legacy_config
+
+    assert legacy_config(N=16) == old.__class__(**{**DEFAULTS_BEFORE_RECOMMENDED, "N": 16})

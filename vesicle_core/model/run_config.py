@@ -161,6 +161,13 @@ class RunConfig:
         return out
 
 
+def legacy_config(**changes) -> RunConfig:
+    """RunConfig of the defaults before they became the recommended method (DEFAULTS_BEFORE_RECOMMENDED: projection
+    scheme, triangle tension, kernel coupling, 4-point kernel, mesh-noise seed, N = 32), with ``changes``: what the
+    studies in benchmarks/ and the measurement history in docs/history/ ran when they left a key unset."""
+    return RunConfig(**{**DEFAULTS_BEFORE_RECOMMENDED, **changes})
+
+
 def default_lambda(chi: float, scheme: str = "explicit") -> float:
     """Default tension modulus of (A5) [kappa/R^2].
 
