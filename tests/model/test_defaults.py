@@ -139,3 +139,19 @@ def test_paper_method_is_the_papers_and_differs_from_the_default():
         for S in group["S"]:
             cfg = RunConfig.from_dict({**run, **group.get("run", {}), "chi": chi_from_S(S, group["delta"])})
             assert cfg.scheme == "explicit" and cfg.coupling == "kernel" and cfg.kernel == "peskin4"
+
+
+def test_vesicle_run_without_set_runs_the_recommended_method(tmp_path, monkeypatch):
+    """`vesicle run mesh.nc -o DIR` with no -c and no --set hands the solver RunConfig(): the default job's method."""
+    from vesicle_core.cli import main
+    from vesicle_core.geometry import mesh as Mm
+    from vesicle_core.solver import simulate
+
+    Mm.save(Mm.make_vesicle("icosphere", level=1), tmp_path / "mesh.nc")
+    seen = {}
+    monkeypatch.setattr(simulate, "run", lambda mesh, cfg, outdir, progress: seen.setdefault("cfg", cfg) and "x.nc")
+    assert main(["run", str(tmp_path / "mesh.nc"), "-o", str(tmp_path / "run"), "--quiet"]) == 0
+    cfg = seen["cfg"]
+    assert cfg == RunConfig()
+    assert (cfg.scheme, cfg.tension_space, cfg.mesh_ale, cfg.coupling, cfg.kernel, cfg.seed_spectrum, cfg.N) == (
+        "inextensible", "harmonic", "quality", "sharp", "bao6", "thermal", 128)
