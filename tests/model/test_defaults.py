@@ -2,7 +2,7 @@
 those of the workflow's schema (workflow/schemas/config.schema.yaml) and the default job (config/config.yaml) agree
 on every key config.yaml sets, except the keys it lists under ``differs_from_default``, each with its reason. So
 ``vesicle run mesh.nc`` with no ``--set`` (and ``RunConfig()``) runs what the default job runs. The paper's own
-method is parameters.PAPER_METHOD and config/paper_method.yaml."""
+method is run_config.PAPER_METHOD and config/paper_method.yaml."""
 
 from dataclasses import replace
 from pathlib import Path
@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from vesicle_core.model import parameters as P
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import PAPER_METHOD, RunConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 SCHEMA = ROOT / "workflow" / "schemas" / "config.schema.yaml"
@@ -124,14 +124,14 @@ def test_a_run_without_parameters_is_the_default_jobs():
 
 
 def test_paper_method_is_the_papers_and_differs_from_the_default():
-    """config/paper_method.yaml runs parameters.PAPER_METHOD on a mesh of edge ~2h, on top of config.yaml (as
+    """config/paper_method.yaml runs run_config.PAPER_METHOD on a mesh of edge ~2h, on top of config.yaml (as
     Snakemake merges a --configfile), and every one of its keys changes a default."""
     from vesicle_core.geometry.mesh import vertices_for_edge
     from vesicle_core.model.units import chi_from_S
 
     base, paper = _load("config.yaml"), _load("paper_method.yaml")
-    assert {k: paper["run"][k] for k in P.PAPER_METHOD} == P.PAPER_METHOD
-    assert all(P.RUN[k].default != v for k, v in P.PAPER_METHOD.items())
+    assert {k: paper["run"][k] for k in PAPER_METHOD} == PAPER_METHOD
+    assert all(P.RUN[k].default != v for k, v in PAPER_METHOD.items())
     run = {**base["run"], **paper["run"]}
     h = run["L"] / run["N"]
     assert paper["mesh"]["n_vertices"] == vertices_for_edge(2 * h)

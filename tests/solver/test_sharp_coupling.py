@@ -144,8 +144,7 @@ def test_sharp_pair_mobility_is_oseen_in_the_far_field():
 
 
 def test_run_parameters_check_the_coupling():
-    from vesicle_core.model.parameters import PAPER_METHOD
-    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.model.run_config import PAPER_METHOD, RunConfig
 
     with pytest.raises(ConfigError, match="coupling"):
         unit_run(coupling="spectral")

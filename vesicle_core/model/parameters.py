@@ -7,14 +7,8 @@ parameter tables of config/README.md are generated from these tables by :mod:`ve
 drifts. ``vesicle params`` prints the tables with defaults.
 Cross-parameter rules (N even, no inextensible scheme at Re > 0, ...) live in ``RunConfig.__post_init__``.
 
-The defaults are the recommended method, the discretisation of the default job (config/config.yaml) whose l_*
-converged at N = 128 by the 3% rule: the inextensible scheme with the harmonic tension and the quality ALE, the sharp
-coupling with the 6-point kernel, the PA's thermal seed, on a quasi-uniform mesh of edge ~h (9512 vertices at N = 128,
-L = 5 R). So ``vesicle mesh`` then ``vesicle run`` without options, and ``RunConfig()``, run what the default job
-runs; tests/model/test_defaults.py fails when config/config.yaml and these tables disagree on a key that config.yaml
-does not list, with its reason, under ``differs_from_default``. The paper's own method (explicit scheme, kernel
-coupling, Peskin's 4-point kernel, mesh-noise seed, a mesh of edge ~2h) is :data:`PAPER_METHOD` and
-config/paper_method.yaml.
+The defaults are the recommended method, the default job's (config/config.yaml; tests/model/test_defaults.py holds
+the two together), so `vesicle mesh` then `vesicle run` without options run it; the paper's: run_config.PAPER_METHOD.
 """
 
 from __future__ import annotations
@@ -464,18 +458,9 @@ MESH_PARAMETERS: tuple[Parameter, ...] = (
         0,
         9,
     ),
-    Parameter(
-        "n_vertices",
-        9512,
-        "int",
-        "vertex count of the quasi-uniform family (null: that of level); ignored by the icosphere. The default, "
-        "9512, is a mean edge of ~h on the default grid (N = 128, L = 5 R: mesh.vertices_for_edge), what the sharp "
-        "coupling needs",
-        "",
-        12,
-        20000000,
-        nullable=True,
-    ),
+    Parameter("n_vertices", 9512, "int", "vertex count of the quasi-uniform family (null: that of level); ignored by "
+              "the icosphere. The default, 9512, is a mean edge of ~h on the default grid (N = 128, L = 5 R: "
+              "mesh.vertices_for_edge), what the sharp coupling needs", "", 12, 20000000, nullable=True),
     Parameter("seed", 0, "int", "seed of the quasi-uniform family", "", 0, 2**31 - 1),
     Parameter("lloyd_steps", 8, "int", "Lloyd relaxation steps (quasi-uniform)", "", 0, 1000),
     Parameter(
@@ -489,20 +474,6 @@ MESH_PARAMETERS: tuple[Parameter, ...] = (
         lo_open=True,
     ),
 )
-
-#: the run parameters of the paper's own method (Secs. II-IV), where they differ from the defaults: the explicit
-#: scheme (the area penalty alone), the kernel coupling with Peskin's 4-point kernel (eqs. 16, 27, 28), the
-#: barycentric vertex area, and no seed but the mesh's own noise (the paper's IBM has no thermal noise). It needs a
-#: mesh of edge ~2h (the paper: 26 070 vertices at 512^3; 2562 at N = 128). config/paper_method.yaml runs it.
-PAPER_METHOD = {
-    "scheme": "explicit",
-    "coupling": "kernel",
-    "kernel": "peskin4",
-    "area_model": "barycentric",
-    "seed_spectrum": "mesh",
-    "tension_space": "triangle",
-    "mesh_ale": "none",
-}
 
 RUN = {p.name: p for p in RUN_PARAMETERS}
 MESH = {p.name: p for p in MESH_PARAMETERS}
