@@ -342,6 +342,7 @@ def test_lint_is_clean(tmp_path):
 
 
 # --------------------------------------------------------------------------- end to end
+@pytest.mark.slow  # a run of the whole workflow; CI also runs it as its own stage (pytest -m slow; CI runs it)
 def test_tiny_workflow_end_to_end(tmp_path):
     import xarray as xr
 

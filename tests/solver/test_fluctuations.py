@@ -212,6 +212,7 @@ def test_mobility_divergence_of_a_translation_invariant_pair_is_small():
     assert np.abs(d1).max() < 0.05 * m0 / g.h
 
 
+@pytest.mark.slow  # a sampling study: a diffusion coefficient (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("coupling", ["kernel", "sharp"])
 def test_a_free_marker_diffuses_with_hasimotos_coefficient(coupling):
     """8 passive markers in a 16^3 box under the noise alone (Euler-Maruyama in the grid frame, no drift term):
@@ -378,6 +379,7 @@ def test_lm_noise_is_the_mean_of_this_and_the_next_steps_euler_draws():
         ThermalNoise(st, KT, scheme="heun")
 
 
+@pytest.mark.slow  # a sampling study: a stationary variance (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("scheme, factor", [("euler", 1.0 / (1.0 - 0.3)), ("lm", 1.0)])
 def test_a_trapped_marker_samples_kT_over_k_with_lm_and_the_euler_bias_without(scheme, factor):
     """One marker in a harmonic trap, X' = M (-k X) + noise, at a step with a dt = 0.6 (a = k m_self): Euler's

@@ -67,6 +67,7 @@ def test_without_noise_the_midpoint_is_second_order_and_euler_first(space):
     assert m[1] < 0.2 * e[1], err
 
 
+@pytest.mark.slow  # a sampling study: the mean drift over many steps (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("drift_every", [1, 0])
 def test_the_midpoint_step_drifts_by_kT_div_N_in_the_mean(drift_every):
     """Weak consistency with the Ito equation: the mean of a noisy midpoint step, less the Euler step with the same

@@ -112,6 +112,7 @@ def _dense(product, X):
     return J
 
 
+@pytest.mark.slow  # an eigenvalue study of the linearised velocity (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("penalty", [False, True])
 def test_the_stiffest_mode_is_the_largest_eigenvalue_of_the_linearised_velocity(penalty):
     """On a non-spherical shape with a 3% volume error (so that the volume penalty pushes with a pressure), with

@@ -325,6 +325,7 @@ def test_smallest_eigenvalue_lanczos_and_its_safe_bound(monkeypatch):
     assert smallest_eigenvalue(A) <= exact  # Gershgorin: a lower bound, so the shift errs on the safe side
 
 
+@pytest.mark.slow  # a dense eigenvalue study of the 642-vertex local mobility (pytest -m slow; CI runs it)
 def test_local_preconditioner_shifts_an_indefinite_local_mobility():
     """With edges ~ h (642 vertices at N = 32) the truncated pair mobility within 3h is indefinite; the build shifts
     it so P is positive definite, and the CG then reaches the compliance-preconditioned solution."""

@@ -251,6 +251,7 @@ def _quality(X, faces):
     return 4 * np.sqrt(3) * A / (e**2).sum(axis=1)
 
 
+@pytest.mark.slow  # a run through the stretch (pytest -m slow; CI runs it)
 def test_shape_ale_keeps_the_triangles_shape_under_a_shear():
     """A differential rotation keeps the areas and shears the triangles: the area ALE then has nothing to correct and
     the worst triangle loses a quarter of its quality; mesh_ale: shape keeps the start's quality (min and median
@@ -269,6 +270,7 @@ def test_shape_ale_keeps_the_triangles_shape_under_a_shear():
     assert np.abs(B.geometry(Xs, topo).area / B.geometry(X0, topo).area - 1).max() < 1e-3
 
 
+@pytest.mark.slow  # a run through the stretch (pytest -m slow; CI runs it)
 def test_quality_ale_restores_the_triangles_that_lose_their_shape():
     """mesh_ale: quality adds the angle rows only where a triangle has fallen below Q_HI of its reference quality,
     at full weight below Q_LO. Under the differential rotation every triangle then keeps more than Q_LO of its own
