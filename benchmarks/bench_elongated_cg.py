@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from vesicle_core.geometry import mesh as M
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.model.units import chi_from_S
 from vesicle_core.solver import tension as T
 from vesicle_core.solver.simulate import _Run
@@ -38,7 +38,7 @@ def main():
     a = ap.parse_args()
 
     mesh = M.make_vesicle(family="quasiuniform", n_vertices=a.n_vertices, target_delta=a.delta)
-    cfg = RunConfig(chi=chi_from_S(a.S, mesh.excess_area()), N=a.N, scheme="inextensible", dtype=a.dtype)
+    cfg = legacy_config(chi=chi_from_S(a.S, mesh.excess_area()), N=a.N, scheme="inextensible", dtype=a.dtype)
     q = M.mesh_quality(mesh.vertices, mesh.faces)
     X, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
     e = X[f[:, [1, 2, 0]]] - X[f]  # (F, 3 edges, 3)

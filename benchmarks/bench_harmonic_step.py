@@ -37,7 +37,9 @@ from bench_tension_space import analyse  # noqa: E402
 
 from vesicle_core.analysis.spectra import spectra_from_trajectory  # noqa: E402
 from vesicle_core.geometry import mesh as M  # noqa: E402
-from vesicle_core.model.run_config import RunConfig  # noqa: E402
+from vesicle_core.model.run_config import (
+    legacy_config,
+)
 from vesicle_core.solver import mesh_ale as MA  # noqa: E402
 from vesicle_core.solver import tension_harmonic as TH  # noqa: E402
 from vesicle_core.solver.simulate import run  # noqa: E402
@@ -89,7 +91,7 @@ def main():
     mesh = M.make_vesicle("quasiuniform", n_vertices=a.n_vertices or 10 * 4**a.level + 2, target_delta=a.delta)
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()
-        path = run(mesh, RunConfig(**kw), a.out or d, progress=False)
+        path = run(mesh, legacy_config(**kw), a.out or d, progress=False)
         wall = time.perf_counter() - t
         ds = xr.open_dataset(path).load()
         spec = spectra_from_trajectory(ds)

@@ -31,7 +31,7 @@ from pathlib import Path
 import xarray as xr
 
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.model.units import chi_from_S
 from vesicle_core.solver.simulate import run
 
@@ -77,7 +77,7 @@ def main(argv=None):
         walls = []
         for k in range(a.repeat):
             d = out / f"{label.replace(' ', '_').replace(',', '')}_{k}"
-            with xr.open_dataset(run(mesh, RunConfig(**{**base, **over}), d, progress=False)) as ds:
+            with xr.open_dataset(run(mesh, legacy_config(**{**base, **over}), d, progress=False)) as ds:
                 at = dict(ds.attrs)
             walls.append(float(at["wall_time_s"]))
         steps = int(at["steps"])

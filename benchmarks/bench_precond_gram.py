@@ -23,7 +23,7 @@ import scipy.sparse.linalg as spla
 
 from vesicle_core.errors import NumericalInstability
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver, pair_table
 from vesicle_core.solver.tension import LocalPreconditioner, TensionSolver, face_D_matrix
 
@@ -49,7 +49,7 @@ class KernelOverlap:
 
 def main(N, n_vertices):
     m = Mm.make_vesicle("quasiuniform", n_vertices=n_vertices, axes=(1.0, 0.8, 1.0))
-    s = IBMSolver(m.faces, m.vertices, RunConfig(chi=268.0, N=N, scheme="inextensible"))
+    s = IBMSolver(m.faces, m.vertices, legacy_config(chi=268.0, N=N, scheme="inextensible"))
     X = s.xp.asarray(m.vertices)
     F, geo = s.forces(X)
     mob = IBMMobility(s.coupler, s.stokes)

@@ -21,7 +21,7 @@ import tempfile
 import time
 
 from vesicle_core.geometry import mesh as M
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.solver.simulate import run
 
 
@@ -50,7 +50,7 @@ def stage(path, name):
 def main(N=256, n_vertices=10242, steps=15, **extra):
     mesh = M.make_vesicle("quasiuniform", n_vertices=n_vertices, axes=(1.0, 0.8, 1.0))
     extra.setdefault("fft_workers", 1)
-    cfg = RunConfig(chi=267.8, N=N, stretch=1.0, t_end=1.0, output_every=0.02, scheme="inextensible",
+    cfg = legacy_config(chi=267.8, N=N, stretch=1.0, t_end=1.0, output_every=0.02, scheme="inextensible",
                     dtype="float32", **extra)
     pr = cProfile.Profile()
     t = time.perf_counter()

@@ -35,7 +35,7 @@ import yaml
 from vesicle_core.analysis.spectra import spectra_from_trajectory
 from vesicle_core.geometry import mesh as M
 from vesicle_core.model.parameters import SCHEMES
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.solver.simulate import run
 
 
@@ -87,7 +87,7 @@ def one(label, mesh, a, outdir):
     if precond:
         kw["cg_precond"] = precond
     kw.update(run_overrides(sets))  # run parameters after a plus: inextensible+cg_tol=1e-6
-    cfg = RunConfig(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
+    cfg = legacy_config(chi=a.chi, N=a.N, stretch=a.stretch, t_end=a.t_end, output_every=0.02, scheme=scheme,
                     fft_workers=a.fft_workers, dtype=a.dtype, **kw)
     t = time.perf_counter()
     path = run(mesh, cfg, outdir, progress=False)

@@ -22,7 +22,7 @@ import numpy as np
 import scipy.linalg as sl
 
 from vesicle_core.geometry import mesh as M
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver
 from vesicle_core.solver.step_size import stability_dt
 from vesicle_core.solver.tension import TensionSolver
@@ -40,7 +40,7 @@ def _with_uniform_tension(forces, sigma):
 
 def stability(mesh, N, chi, coupling="kernel"):
     for sigma in (0.0, 2000.0, 8000.0):
-        s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible", coupling=coupling))
+        s = IBMSolver(mesh.faces, mesh.vertices, legacy_config(chi=chi, N=N, scheme="inextensible", coupling=coupling))
         s.membrane.forces = _with_uniform_tension(s.membrane.forces, sigma)
         _, lam = stability_dt(s, s.xp.asarray(mesh.vertices), max_iter=60)
         ratio = f"{lam * s.grid.h / sigma:.3f}" if sigma else "-"
@@ -48,7 +48,7 @@ def stability(mesh, N, chi, coupling="kernel"):
 
 
 def conditioning(mesh, N, chi, Lam, dt):
-    s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible"))
+    s = IBMSolver(mesh.faces, mesh.vertices, legacy_config(chi=chi, N=N, scheme="inextensible"))
     X = mesh.vertices
     _, geo = s.forces(X)
     mob = IBMMobility(s.coupler, s.stokes)
@@ -94,7 +94,7 @@ def local_mobility(mesh, N, chi):
 
     from vesicle_core.solver.mobility import local_mobility_matrix, pair_table
 
-    s = IBMSolver(mesh.faces, mesh.vertices, RunConfig(chi=chi, N=N, scheme="inextensible"))
+    s = IBMSolver(mesh.faces, mesh.vertices, legacy_config(chi=chi, N=N, scheme="inextensible"))
     table = pair_table(IBMMobility(s.coupler, s.stokes))
     for r_cut in (1.5, 2.0, 3.0):
         Ml = local_mobility_matrix(mesh.vertices, table, r_cut=r_cut * s.grid.h)

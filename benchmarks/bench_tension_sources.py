@@ -38,7 +38,7 @@ import xarray as xr
 from vesicle_core.analysis.spectra import spectra_from_trajectory
 from vesicle_core.geometry import mesh as M
 from vesicle_core.model.flow import background_velocity
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.solver import integrators as I
 from vesicle_core.solver import membrane as B
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver
@@ -63,7 +63,7 @@ def load_case(path):
     faces = ds.face_node_connectivity.values
     X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
     a = ds.attrs
-    cfg = RunConfig(chi=float(a["chi"]), N=int(a["N"]), L=float(a["L"]), scheme="inextensible", dtype="float64",
+    cfg = legacy_config(chi=float(a["chi"]), N=int(a["N"]), L=float(a["L"]), scheme="inextensible", dtype="float64",
                     kernel=str(a.get("kernel", "peskin4")))
     sol = IBMSolver(faces, X[0], cfg)
     return ds, faces, X, cfg, sol, IBMMobility(sol.coupler, sol.stokes, sol._grid_buf)
@@ -224,7 +224,7 @@ def variants(a):
             if True:
                 record = []
                 I.SCHEMES["inextensible"] = make_integrator(cells, bending, record, free)
-                cfg = RunConfig(chi=a.chi, N=a.N, stretch=1.0, t_end=1.0, output_every=0.02, scheme="inextensible",
+                cfg = legacy_config(chi=a.chi, N=a.N, stretch=1.0, t_end=1.0, output_every=0.02, scheme="inextensible",
                                 dtype="float64" if a.N <= 64 else "float32")
                 path = run(mesh, cfg, os.path.join(d, f"{cells}_{bending}_{free}"), progress=False)
                 with xr.open_dataset(path) as ds:

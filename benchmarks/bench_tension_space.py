@@ -131,7 +131,7 @@ def conditioning(path, frames, N):
     also the measured rho_l against the frame's l."""
     import scipy.linalg as sl
 
-    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.model.run_config import legacy_config
     from vesicle_core.solver.mobility import IBMMobility, IBMSolver
     from vesicle_core.solver.tension_harmonic import HarmonicTensionSolver
 
@@ -139,7 +139,7 @@ def conditioning(path, frames, N):
     faces = ds.face_node_connectivity.values.astype(np.int64)
     X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
     chi = float(ds.attrs["chi"])
-    cfg = RunConfig(chi=chi, N=N, scheme="inextensible", tension_space="harmonic")
+    cfg = legacy_config(chi=chi, N=N, scheme="inextensible", tension_space="harmonic")
     s = IBMSolver(faces, X[0], cfg)
     topo = s.membrane.topo
     A0 = s.membrane.ref.face_area

@@ -27,13 +27,13 @@ import numpy as np
 
 from vesicle_core.errors import NumericalInstability
 from vesicle_core.geometry import mesh as M
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.model.units import chi_from_S
 from vesicle_core.solver import simulate
 
 
 def one(mesh, a, kT, noise_step, seed):
-    cfg = RunConfig(chi=chi_from_S(a.S, a.delta), N=a.N, L=5.0, scheme="inextensible", coupling="sharp",
+    cfg = legacy_config(chi=chi_from_S(a.S, a.delta), N=a.N, L=5.0, scheme="inextensible", coupling="sharp",
                     tension_space="harmonic", mesh_ale="area", dtype="float32", stretch=1.0, t_end=1.0,
                     output_every=0.02, kT=kT, noise_seed=seed, noise_step=noise_step, fft_workers=1)
     dts = []

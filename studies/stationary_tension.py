@@ -51,7 +51,7 @@ from vesicle_core.analysis.shape import fit_ellipsoid
 from vesicle_core.cli.args import parse_set
 from vesicle_core.geometry import mesh as M
 from vesicle_core.geometry.surface import enclosed_volume, surface_area
-from vesicle_core.model.run_config import RunConfig
+from vesicle_core.model.run_config import legacy_config
 from vesicle_core.model.units import S_from_chi, chi_from_S
 from vesicle_core.solver.simulate import run
 from vesicle_core.validation.box import box_tension, image_extrapolation
@@ -110,7 +110,7 @@ def one_point(delta, L, N, a, extra):
                       fft_workers=1)
         params.update(extra)
         t0 = time.perf_counter()
-        run(mesh, RunConfig.from_dict(params), rundir, progress=False)
+        run(mesh, legacy_config(**params), rundir, progress=False)  # the defaults it was run with
         wall = time.perf_counter() - t0
     with xr.open_dataset(traj_path) as traj:
         traj = traj.load()

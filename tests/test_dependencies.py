@@ -7,6 +7,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from unit_run import UNIT_RUN
 
 from vesicle_core.errors import MissingDependency, VesicleError, require
 
@@ -37,7 +38,8 @@ CORE_ONLY = textwrap.dedent(f"""
     assert backend.get_backend().fft_library == "scipy"
     assert stokes._compiled_steady_pass() is None
     m = mesh.make_vesicle("icosphere", level=1)
-    cfg = RunConfig(chi=20.0, N=16, stretch=0.05, t_end=0.02, output_every=0.01, Lambda=2e4, K_volume=1e6)
+    cfg = RunConfig(**{{**{UNIT_RUN!r}, **dict(chi=20.0, N=16, stretch=0.05, t_end=0.02, output_every=0.01,
+                                            Lambda=2e4, K_volume=1e6)}})
     path = run(m, cfg, sys.argv[1], progress=False)
     from vesicle_core.data.catalog import write_catalog
     write_catalog([path], sys.argv[1] + "/catalog.csv")

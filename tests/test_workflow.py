@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+from vesicle_core.errors import ConfigError
+
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 
@@ -181,11 +183,13 @@ def test_duplicate_cases_are_refused(tmp_path):
 
 
 def test_config_files_satisfy_schema_and_solver():
-    """Every shipped config validates against the schema, and its run section (table defaults filled in) is a
-    valid vesicle_core.model.run_config.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
+    """Every shipped config, merged over config/config.yaml as Snakemake merges a --configfile, validates against the
+    schema, and every case's run section (table defaults filled in) is a valid
+    vesicle_core.model.run_config.RunConfig; the schema's run keys are exactly RunConfig's (less chi)."""
+    import copy
     from dataclasses import fields
 
-    from snakemake.utils import validate
+    from snakemake.utils import update_config, validate
 
     from vesicle_core.model.parameters import RUN_PARAMETERS, defaults
     from vesicle_core.model.run_config import RunConfig
@@ -195,14 +199,21 @@ def test_config_files_satisfy_schema_and_solver():
     params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"
     run_props = yaml.safe_load(params_schema.read_text())["$defs"]["run"]["properties"]
     assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
-    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "paper_explicit.yaml", "validation.yaml", "convergence.yaml",
-                 "sharp.yaml"):
-        cfg = yaml.safe_load((ROOT / "config" / name).read_text())
+    base = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
+    names = sorted(p.name for p in (ROOT / "config").glob("*.yaml"))
+    assert len(names) >= 10 and {"paper_method.yaml", "paper_explicit.yaml"} <= set(names)
+    for name in names:
+        cfg = copy.deepcopy(base)
+        update_config(cfg, yaml.safe_load((ROOT / "config" / name).read_text()))
         validate(cfg, str(schema))
         for group in cfg["sweep"]:
             run = {**defaults(RUN_PARAMETERS, workflow_only=True), **cfg["run"], **group.get("run", {})}
-            for S in group.get("S", []):
-                RunConfig.from_dict({**run, "chi": chi_from_S(S, group["delta"])})
+            flows = [chi_from_S(S, group["delta"]) for S in group.get("S", [])] + list(group.get("chi", []))
+            for chi in flows:
+                try:
+                    RunConfig.from_dict({**run, "chi": chi})
+                except ConfigError as exc:
+                    raise AssertionError(f"config/{name}, sweep group {group}: {exc}") from None
     readme = (ROOT / "config" / "README.md").read_text()
 
     def keys(node):
@@ -219,6 +230,25 @@ def test_config_files_satisfy_schema_and_solver():
 
     for key in set(keys(yaml.safe_load(schema.read_text()))) | set(keys(yaml.safe_load(params_schema.read_text()))):
         assert f"`{key}`" in readme, f"config/README.md does not document the key {key!r}"
+
+
+def test_the_catalogs_test_config_is_the_tiny_config(tmp_path):
+    """.test/config/config.yaml (what the Snakemake workflow catalog runs: `snakemake --directory .test`, the config
+    read alone) is config/tiny.yaml (a link: one home), and both ways plan the same jobs with the same commands and
+    run parameters as `--configfile config/tiny.yaml` merged over config/config.yaml."""
+    link = ROOT / ".test" / "config" / "config.yaml"
+    assert link.is_symlink() and link.resolve() == (ROOT / "config" / "tiny.yaml").resolve()
+    wd = workflow_copy(tmp_path)
+    shutil.copytree(ROOT / ".test" / "config", wd / ".test" / "config", symlinks=True)
+    plans = []
+    for args in (["--configfile", "config/tiny.yaml"], ["--directory", ".test"]):
+        r = snakemake(wd, "all", "-n", "-p", *args)
+        assert r.returncode == 0, r.stderr + r.stdout
+        jobs = sorted((j["rule"], tuple(j["output"])) for j in planned_jobs(r.stdout))
+        commands = sorted(re.findall(r"^Shell command: (.*?)(?=\n\n|\Z)", r.stdout, flags=re.M | re.S))
+        plans.append((jobs, commands))
+    assert plans[0][0] and plans[0] == plans[1]
+    assert sum(c.count("\nscheme: projection\n") for c in plans[0][1]) == 2  # the tiny runs themselves
 
 
 # --------------------------------------------------------------------------- paper scale
@@ -341,6 +371,7 @@ def test_lint_is_clean(tmp_path):
 
 
 # --------------------------------------------------------------------------- end to end
+@pytest.mark.slow  # a run of the whole workflow; CI also runs it as its own stage (pytest -m slow; CI runs it)
 def test_tiny_workflow_end_to_end(tmp_path):
     import xarray as xr
 

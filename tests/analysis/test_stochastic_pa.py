@@ -66,6 +66,7 @@ def _equilibrium_ratio(n_steps=5000):
     return eq, eq["var"][2:] / theory, eq["var_se"][2:] / theory
 
 
+@pytest.mark.slow  # a sampling study (pytest -m slow; CI runs it)
 def test_equilibrium_spectrum_is_equipartition_at_the_mean_tension():
     """S = 0, kT/kappa = 0.0405, Delta = 0.04: <|u_lm|^2> = kT / (kappa Delta [l(l+1) + <sigma>]) for every l
     within 10% (the issue's bound; the sampling error is ~1.3% at l = 2) and <sigma> within 5% of the mean-field
@@ -77,6 +78,7 @@ def test_equilibrium_spectrum_is_equipartition_at_the_mean_tension():
     assert eq["sigma_mean"] == pytest.approx(eq["sigma_mean_field"], rel=0.05)
 
 
+@pytest.mark.slow  # a sampling study (pytest -m slow; CI runs it)
 def test_equilibrium_check_rejects_a_wrong_noise(monkeypatch):
     """The same check with the noise amplitude off by sqrt 2 (diffusivity x 2) fails: the check can fail."""
     build = SP._Rates.build

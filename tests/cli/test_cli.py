@@ -94,8 +94,11 @@ def test_run_command_reports_where_the_time_went(tmp_path, capsys):
 
     mesh = tmp_path / "mesh.nc"
     assert main(["mesh", "-o", str(mesh), "--level", "2"]) == 0
-    sets = ["N=16", "scheme=inextensible", "tension_space=harmonic", "chi=10", "stretch=0.05", "t_end=0.05",
-            "output_every=0.025"]
+    from unit_run import UNIT_RUN
+
+    sets = [f"{k}={v}" for k, v in UNIT_RUN.items()]
+    sets += ["N=16", "scheme=inextensible", "tension_space=harmonic", "chi=10", "stretch=0.05", "t_end=0.05",
+             "output_every=0.025"]
     args = ["run", str(mesh), "-o", str(tmp_path / "run")]
     for kv in sets:
         args += ["--set", kv]

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.data import case_ids as Ci
 from vesicle_core.data import catalog as C
@@ -244,7 +245,6 @@ def real_runs(tmp_path_factory):
     trajectories and spectra are written the way the workflow lays them out (about 2 s)."""
     from vesicle_core.analysis.spectra import spectra_from_trajectory
     from vesicle_core.geometry import mesh as M
-    from vesicle_core.model.run_config import RunConfig
     from vesicle_core.solver.simulate import run
 
     root = tmp_path_factory.mktemp("real") / "results"
@@ -263,7 +263,7 @@ def real_runs(tmp_path_factory):
         mp = root / "meshes" / f"{Ci.mesh_id(delta, m.attrs['family'], max(m.attrs['level'], 0), m.n_vertices)}.nc"
         mp.parent.mkdir(parents=True, exist_ok=True)
         M.save(m, mp)
-        cfg = RunConfig(chi=20.0, N=16, stretch=0.05, t_end=0.05, output_every=0.05, Lambda=2e4, K_volume=1e6,
+        cfg = unit_run(chi=20.0, N=16, stretch=0.05, t_end=0.05, output_every=0.05, Lambda=2e4, K_volume=1e6,
                         **c["cfg"])
         traj = run(m, cfg, root / "runs" / c["id"], progress=False)
         with xr.open_dataset(traj) as ds:

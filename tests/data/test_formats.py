@@ -7,10 +7,10 @@ import warnings
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.cli import main
 from vesicle_core.geometry import mesh as M
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.model.units import SCALE_ATTRS, SOLVER_UNITS, cf_unit_attrs
 from vesicle_core.solver.simulate import run
 from vesicle_core.solver.trajectory import _as_ugrid
@@ -24,7 +24,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("formats")
     out = {"mesh": d / "mesh.nc", "spectra": d / "spectra.nc", "fit": d / "fit.nc", "microscope": d / "microscope.nc"}
     assert main(["mesh", "-o", str(out["mesh"]), "--family", "icosphere", "--level", "2", "--delta", "0.116"]) == 0
-    cfg = RunConfig(chi=20.0, N=16, stretch=0.2, t_end=0.1, output_every=0.05, Lambda=2e4, K_volume=1e6,
+    cfg = unit_run(chi=20.0, N=16, stretch=0.2, t_end=0.1, output_every=0.05, Lambda=2e4, K_volume=1e6,
                     store_velocity=True)
     out["trajectory"] = run(M.load(out["mesh"]), cfg, d / "run", progress=False)
     assert main(["decompose", str(out["trajectory"]), "-o", str(out["spectra"]), "--l-max", "6", "--quiet"]) == 0

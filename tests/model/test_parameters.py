@@ -77,10 +77,13 @@ def test_choices_match_the_code():
 
 def test_cli_defaults_are_the_table():
     from vesicle_core.cli import build_parser
+    from vesicle_core.cli.sim import mesh_resolution
 
     a = build_parser().parse_args(["mesh", "-o", "x.nc"])
+    a.level, a.n_vertices = mesh_resolution(a.level, a.n_vertices)  # options not given: None until resolved
     for p in P.MESH_PARAMETERS:
         assert getattr(a, p.name) == p.default, p.name
+    assert mesh_resolution(3, None) == (3, None)  # --level alone: the quasi-uniform count of that level
 
 
 def test_workflow_fills_the_table_defaults():

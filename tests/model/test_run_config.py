@@ -106,9 +106,24 @@ def test_from_attrs_gives_back_the_config_a_trajectory_stored(tmp_path):
     import xarray as xr
 
     cfg = RunConfig(chi=3.0, N=32, scheme="inextensible", kT=0.04, noise_seed=9, noise_scheme="midpoint",
-                    store_velocity=True, tension_space="harmonic", tension_l_max=None, dt=2.5e-4)
+                    store_velocity=True, tension_space="harmonic", tension_l_max=None, dt=2.5e-4, seed_spectrum="mesh")
     attrs = {k: (str(v) if isinstance(v, bool) else v) for k, v in cfg.as_attrs().items()}
     xr.Dataset(attrs={**attrs, "title": "x"}).to_netcdf(tmp_path / "t.nc")
     back = RunConfig.from_attrs(xr.open_dataset(tmp_path / "t.nc").attrs)
     assert back == cfg
     assert back.store_velocity is True and back.tension_l_max is None and isinstance(back.N, int)
+
+
+def test_from_attrs_reads_a_missing_key_as_its_default_of_the_time():
+    """A trajectory written before a key existed lacks it, and ran with that key's default of the time: the defaults
+    before the recommended method became the default (coupling kernel, tension_space triangle, ...), not today's."""
+    from vesicle_core.model.run_config import DEFAULTS_BEFORE_RECOMMENDED
+
+    old = RunConfig.from_attrs({"chi": 67.0, "N": 64, "scheme": "inextensible"})
+    assert (old.coupling, old.kernel, old.tension_space, old.mesh_ale, old.seed_spectrum, old.t_end) == (
+        "kernel", "peskin4", "triangle", "none", "mesh", 1.5)
+    assert old.N == 64 and old.scheme == "inextensible"  # what the file records wins
+    assert all(RunConfig().__getattribute__(k) != v for k, v in DEFAULTS_BEFORE_RECOMMENDED.items())
+    from vesicle_core.model.run_config import legacy_config
+
+    assert legacy_config(N=16) == old.__class__(**{**DEFAULTS_BEFORE_RECOMMENDED, "N": 16})

@@ -1,9 +1,9 @@
 """Fixtures shared by the solver tests."""
 
 import pytest
+from unit_run import unit_run
 
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver
 from vesicle_core.solver.tension_harmonic import HarmonicSpace
 
@@ -12,7 +12,7 @@ def _harmonic_setup(n_vertices=162, N=16, l_t=4):
     """A 1:0.8:1 quasi-uniform vesicle at chi = 50 with its forces, prepared mobility and harmonic space:
     (mesh, solver, X, F, geometry, mobility, space)."""
     m = Mm.make_vesicle("quasiuniform", n_vertices=n_vertices, axes=(1.0, 0.8, 1.0))
-    s = IBMSolver(m.faces, m.vertices, RunConfig(chi=50.0, N=N, scheme="inextensible", tension_space="harmonic"))
+    s = IBMSolver(m.faces, m.vertices, unit_run(chi=50.0, N=N, scheme="inextensible", tension_space="harmonic"))
     X = s.xp.asarray(m.vertices)
     F, geo = s.forces(X)
     mob = IBMMobility(s.coupler, s.stokes)

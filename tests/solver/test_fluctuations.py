@@ -6,6 +6,7 @@ by sampling; reproducible counter-based numbers on the NumPy, GPU-layout and sta
 import numpy as np
 import pytest
 from scipy import stats
+from unit_run import unit_run
 
 from vesicle_core.errors import ConfigError
 from vesicle_core.solver import backend as backend_module
@@ -212,6 +213,7 @@ def test_mobility_divergence_of_a_translation_invariant_pair_is_small():
     assert np.abs(d1).max() < 0.05 * m0 / g.h
 
 
+@pytest.mark.slow  # a sampling study: a diffusion coefficient (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("coupling", ["kernel", "sharp"])
 def test_a_free_marker_diffuses_with_hasimotos_coefficient(coupling):
     """8 passive markers in a 16^3 box under the noise alone (Euler-Maruyama in the grid frame, no drift term):
@@ -379,6 +381,7 @@ def test_lm_noise_is_the_mean_of_this_and_the_next_steps_euler_draws():
         ThermalNoise(st, KT, scheme="heun")
 
 
+@pytest.mark.slow  # a sampling study: a stationary variance (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("scheme, factor", [("euler", 1.0 / (1.0 - 0.3)), ("lm", 1.0)])
 def test_a_trapped_marker_samples_kT_over_k_with_lm_and_the_euler_bias_without(scheme, factor):
     """One marker in a harmonic trap, X' = M (-k X) + noise, at a step with a dt = 0.6 (a = k m_self): Euler's
@@ -406,7 +409,6 @@ def test_noise_on_markers_much_finer_than_the_grid_warns(caplog):
     before the run; an edge of ~h, where the 642-vertex runs held their area, is silent, and so is a run without
     noise on the same fine mesh."""
     from vesicle_core.geometry import mesh as M
-    from vesicle_core.model.run_config import RunConfig
     from vesicle_core.solver.fluctuations import NOISE_EDGE_MIN, noise_mesh_warning
     from vesicle_core.solver.simulate import _check_mesh_spacing
 
@@ -414,10 +416,10 @@ def test_noise_on_markers_much_finer_than_the_grid_warns(caplog):
     m = M.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))  # mean edge ~0.25 R
     noisy = dict(scheme="inextensible", tension_space="harmonic", kT=0.0405)
     with caplog.at_level("WARNING", logger="vesicle_core.solver.simulate"):
-        _check_mesh_spacing(m, RunConfig(N=16, **noisy))  # h = 0.31: edge ~0.8 h
+        _check_mesh_spacing(m, unit_run(N=16, **noisy))  # h = 0.31: edge ~0.8 h
         assert not caplog.records
-        _check_mesh_spacing(m, RunConfig(N=8, **noisy))  # h = 0.625: edge ~0.4 h
+        _check_mesh_spacing(m, unit_run(N=8, **noisy))  # h = 0.625: edge ~0.4 h
         assert "kT > 0" in caplog.text and "edge ~h" in caplog.text
         caplog.clear()
-        _check_mesh_spacing(m, RunConfig(N=8, scheme="inextensible", tension_space="harmonic"))
+        _check_mesh_spacing(m, unit_run(N=8, scheme="inextensible", tension_space="harmonic"))
         assert not caplog.records

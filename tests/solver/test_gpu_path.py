@@ -12,6 +12,7 @@ gather in ibm.interpolate) and must give the NumPy run's numbers to FFT round-of
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.geometry import mesh as M
 from vesicle_core.solver import backend as backend_module
@@ -32,7 +33,6 @@ def test_cupy_backend_is_selected_and_takes_gpu_branches(fake_cupy):
 @pytest.mark.parametrize("scheme,coupling", [("projection", "kernel"), ("inextensible", "kernel"),
                                              ("projection", "sharp")])
 def test_a_run_on_the_gpu_path_matches_numpy(fake_cupy, tmp_path, scheme, coupling):
-    from vesicle_core.model.run_config import RunConfig
     from vesicle_core.solver.simulate import run
 
     _, calls = fake_cupy
@@ -44,7 +44,7 @@ def test_a_run_on_the_gpu_path_matches_numpy(fake_cupy, tmp_path, scheme, coupli
         base.update(cg_tol=1e-10, cg_maxiter=2000)
     out = {}
     for name in ("numpy", "cupy"):
-        with xr.open_dataset(run(m, RunConfig(**base, backend=name), tmp_path / name, progress=False)) as ds:
+        with xr.open_dataset(run(m, unit_run(**base, backend=name), tmp_path / name, progress=False)) as ds:
             out[name] = ds.load()
     assert calls["scatter_add"] > 0 and calls["asnumpy"] > 0  # the GPU branches ran
     a, b = out["numpy"], out["cupy"]

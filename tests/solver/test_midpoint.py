@@ -4,10 +4,10 @@ clear errors."""
 
 import numpy as np
 import pytest
+from unit_run import unit_run
 
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.fluctuations import mobility_divergence
 from vesicle_core.solver.integrators import Inextensible
 from vesicle_core.solver.midpoint import MidpointInextensible
@@ -23,7 +23,7 @@ def _setup(noise_scheme, kT=0.0, space="harmonic", drift_every=1):
     SDE's) alone. A background flow of rate 5 / tau moves the vesicle within a step."""
     m = Mm.make_vesicle("icosphere", level=1, axes=(1.0, 0.8, 1.1))
     extra = {"tension_l_max": 3} if space == "harmonic" else {}
-    cfg = RunConfig(chi=5.0, stretch=1.0, N=16, scheme="inextensible", tension_space=space, Lambda=1e12,
+    cfg = unit_run(chi=5.0, stretch=1.0, N=16, scheme="inextensible", tension_space=space, Lambda=1e12,
                     cg_tol=1e-12, cg_maxiter=2000, kT=kT, noise_seed=7, noise_scheme=noise_scheme, mesh_ale="none",
                     noise_drift_every=drift_every, **extra)
     s = IBMSolver(m.faces, m.vertices, cfg)
@@ -46,7 +46,7 @@ def test_the_midpoint_variant_is_chosen_by_noise_scheme_and_refused_elsewhere():
     _, integ, _ = _setup("lm")
     assert type(integ) is Inextensible and integ.strain_order == 2
     with pytest.raises(ConfigError, match="noise_scheme 'midpoint'.*scheme 'inextensible'.*got scheme 'explicit'"):
-        RunConfig(scheme="explicit", noise_scheme="midpoint")
+        unit_run(scheme="explicit", noise_scheme="midpoint")
 
 
 @pytest.mark.parametrize("space", ["harmonic", "triangle"])
@@ -67,6 +67,7 @@ def test_without_noise_the_midpoint_is_second_order_and_euler_first(space):
     assert m[1] < 0.2 * e[1], err
 
 
+@pytest.mark.slow  # a sampling study: the mean drift over many steps (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("drift_every", [1, 0])
 def test_the_midpoint_step_drifts_by_kT_div_N_in_the_mean(drift_every):
     """Weak consistency with the Ito equation: the mean of a noisy midpoint step, less the Euler step with the same

@@ -5,12 +5,12 @@ the trajectory actually took."""
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.analysis import harmonics as H
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as M
 from vesicle_core.model.modes import initial_state
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.seeding import thermal_coefficients, thermal_seed
 from vesicle_core.solver.simulate import run
 
@@ -54,7 +54,7 @@ def test_scale_multiplies_the_variance():
 )
 def test_bad_seed_config_names_field(kw, name):
     with pytest.raises(ConfigError, match=name):
-        RunConfig(**kw)
+        unit_run(**kw)
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +74,7 @@ def pair(tmp_path_factory):
     )
     out = {}
     for name, extra in (("mesh", {}), ("thermal", dict(seed_spectrum="thermal", seed_scale=100.0))):
-        with xr.open_dataset(run(m, RunConfig(**base, **extra), d / name, progress=False)) as ds:
+        with xr.open_dataset(run(m, unit_run(**base, **extra), d / name, progress=False)) as ds:
             out[name] = ds.load()
     return out
 

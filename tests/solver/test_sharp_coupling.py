@@ -8,6 +8,7 @@ quadrature for phi_hat, the unfiltered solver applied to a filtered force for th
 
 import numpy as np
 import pytest
+from unit_run import unit_run
 
 from vesicle_core.errors import ConfigError
 from vesicle_core.solver.backend import get_backend
@@ -143,13 +144,14 @@ def test_sharp_pair_mobility_is_oseen_in_the_far_field():
 
 
 def test_run_parameters_check_the_coupling():
-    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.model.run_config import PAPER_METHOD, RunConfig
 
     with pytest.raises(ConfigError, match="coupling"):
-        RunConfig(coupling="spectral")
+        unit_run(coupling="spectral")
     with pytest.raises(ConfigError, match="sharp_floor"):
-        RunConfig(coupling="sharp", sharp_floor=0.0)
-    assert RunConfig().coupling == "kernel"  # the paper's coupling stays the default
+        unit_run(coupling="sharp", sharp_floor=0.0)
+    assert RunConfig().coupling == "sharp"  # the recommended method's coupling is the default
+    assert PAPER_METHOD["coupling"] == "kernel"  # the paper's is a named set
 
 
 def test_sharp_coupling_resolves_more_modes_per_grid_node():
@@ -184,20 +186,19 @@ def test_sharp_mode_damping_describes_the_measured_rates():
 
 def test_a_sharp_run_on_coarse_markers_or_the_3_point_kernel_warns(caplog):
     from vesicle_core.geometry import mesh as M
-    from vesicle_core.model.run_config import RunConfig
     from vesicle_core.solver.simulate import _check_mesh_spacing
 
     m = M.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))  # mean edge ~0.25 R
     with caplog.at_level("WARNING", logger="vesicle_core.solver.simulate"):
-        _check_mesh_spacing(m, RunConfig(N=16, coupling="sharp"))  # h = 0.31: edge < h, silent
+        _check_mesh_spacing(m, unit_run(N=16, coupling="sharp"))  # h = 0.31: edge < h, silent
         assert not caplog.records
-        _check_mesh_spacing(m, RunConfig(N=48, coupling="sharp"))  # h = 0.10: edge ~2.4 h
+        _check_mesh_spacing(m, unit_run(N=48, coupling="sharp"))  # h = 0.10: edge ~2.4 h
         assert "mesh edge" in caplog.text and "vertices" in caplog.text
         caplog.clear()
-        _check_mesh_spacing(m, RunConfig(N=16, coupling="sharp", kernel="roma3"))
+        _check_mesh_spacing(m, unit_run(N=16, coupling="sharp", kernel="roma3"))
         assert "roma3" in caplog.text
         caplog.clear()
-        _check_mesh_spacing(m, RunConfig(N=48))  # the kernel coupling has no such requirement
+        _check_mesh_spacing(m, unit_run(N=48))  # the kernel coupling has no such requirement
         assert not caplog.records
 
 

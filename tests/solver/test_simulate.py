@@ -8,6 +8,7 @@ import signal
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.errors import ConfigError, NumericalInstability
 from vesicle_core.geometry import mesh as M
@@ -24,7 +25,7 @@ def _mesh(level=2, axes=(1.0, 0.8, 1.0)):
 
 def test_sphere_at_rest_stays_put():
     m = _mesh(level=3, axes=(1, 1, 1))
-    cfg = RunConfig(chi=0.0, N=32, stretch=0.0, t_end=0.01, Lambda=1e4)
+    cfg = unit_run(chi=0.0, N=32, stretch=0.0, t_end=0.01, Lambda=1e4)
     s = IBMSolver(m.faces, m.vertices, cfg)
     u = s.membrane_velocity(s.xp.asarray(m.vertices))
     # a sphere is in equilibrium: the induced velocity is discretisation error only. Compare with the
@@ -40,7 +41,7 @@ def test_sphere_at_rest_stays_put():
                                              ("sharp", "inextensible")])
 def test_perturbed_ellipsoid_relaxes_without_flow(tmp_path, coupling, scheme):
     m = _mesh(level=2)
-    cfg = RunConfig(chi=0.0, N=16, stretch=0.0, t_end=0.02, output_every=0.002, Lambda=1e4, K_volume=1e5,
+    cfg = unit_run(chi=0.0, N=16, stretch=0.0, t_end=0.02, output_every=0.002, Lambda=1e4, K_volume=1e5,
                     coupling=coupling, scheme=scheme)
     path = run(m, cfg, tmp_path, progress=False)
     with xr.open_dataset(path) as ds:
@@ -54,7 +55,7 @@ def test_perturbed_ellipsoid_relaxes_without_flow(tmp_path, coupling, scheme):
 def stretch_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("stretch")
     m = _mesh(level=2)
-    cfg = RunConfig(chi=20.0, N=16, stretch=1.0, t_end=0.3, output_every=0.05, Lambda=2e4, K_volume=1e6)
+    cfg = unit_run(chi=20.0, N=16, stretch=1.0, t_end=0.3, output_every=0.05, Lambda=2e4, K_volume=1e6)
     return xr.open_dataset(run(m, cfg, d, progress=False)).load()
 
 
@@ -84,7 +85,7 @@ def test_a_second_run_into_a_directory_being_written_is_refused(tmp_path):
     """Two runs writing one directory would interleave frames and checkpoints: the second stops at once, touching
     nothing, and the directory is free again when the first ends (here: when its lock is released)."""
     m = _mesh(level=2)
-    cfg = RunConfig(chi=10.0, N=16, stretch=0.02, t_end=0.02, output_every=0.02, Lambda=1e4, dt=2e-4)
+    cfg = unit_run(chi=10.0, N=16, stretch=0.02, t_end=0.02, output_every=0.02, Lambda=1e4, dt=2e-4)
     (tmp_path / CHECKPOINT).write_text("another run's")
     with hold_run_lock(tmp_path):
         with pytest.raises(ConfigError, match=f"{tmp_path} is being written by another vesicle run .pid {os.getpid()}"):
@@ -99,7 +100,7 @@ def test_a_second_run_into_a_directory_being_written_is_refused(tmp_path):
 
 def test_resume_is_bit_identical(tmp_path):
     m = _mesh(level=2)
-    cfg = RunConfig(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=25, Lambda=1e4,
+    cfg = unit_run(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=25, Lambda=1e4,
                     K_volume=1e5, dt=2e-4)
     ref = run(m, cfg, tmp_path / "a", progress=False)
     # interrupted after its first checkpoint (and a few steps more, whose frames must be discarded)
@@ -126,7 +127,7 @@ def test_a_reader_holding_the_partial_file_does_not_stop_the_run(tmp_path, monke
     from vesicle_core.solver.trajectory import TrajectoryWriter
 
     m = _mesh(level=2)
-    cfg = RunConfig(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=25, Lambda=1e4,
+    cfg = unit_run(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=25, Lambda=1e4,
                     K_volume=1e5, dt=2e-4)
     ref = run(m, cfg, tmp_path / "a", progress=False)
     real = TrajectoryWriter._write_pending
@@ -156,7 +157,7 @@ def test_stop_signal_checkpoints_the_step_and_resumes_identically(tmp_path, monk
     from vesicle_core.solver import integrators
 
     m = _mesh(level=2)
-    cfg = RunConfig(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=10**6, Lambda=1e4,
+    cfg = unit_run(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=10**6, Lambda=1e4,
                     K_volume=1e5, dt=2e-4)
     ref = run(m, cfg, tmp_path / "a", progress=False)
     calls = []
@@ -187,7 +188,7 @@ def test_stop_signal_checkpoints_the_step_and_resumes_identically(tmp_path, monk
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")  # the blow-up overflows on purpose
 def test_blow_up_stops_with_diagnostic_and_no_trajectory(tmp_path):
     m = _mesh(level=2)
-    cfg = RunConfig(chi=0.0, N=16, stretch=0.0, t_end=1.0, Lambda=1e6, dt=1e-2, output_every=0.05)
+    cfg = unit_run(chi=0.0, N=16, stretch=0.0, t_end=1.0, Lambda=1e6, dt=1e-2, output_every=0.05)
     with pytest.raises(NumericalInstability):
         run(m, cfg, tmp_path, progress=False)
     assert (tmp_path / FAILURE).exists()
@@ -201,7 +202,7 @@ def test_blow_up_stops_with_diagnostic_and_no_trajectory(tmp_path):
 )
 def test_bad_config_names_field(kw, name):
     with pytest.raises(ConfigError, match=name):
-        RunConfig(**kw)
+        unit_run(**kw)
 
 
 def test_unknown_key_rejected():
@@ -213,7 +214,7 @@ def test_unknown_key_rejected():
 def test_small_run_conserves_area_and_volume(tmp_path):
     """N = 32, level-3 mesh, Delta = 0.116-like ellipsoid, chi = 67, to gamma_dot t = 3 after the reversal."""
     m = _mesh(level=3)
-    cfg = RunConfig(chi=67.0, N=32, stretch=1.0, t_end=3.0, output_every=0.1)
+    cfg = unit_run(chi=67.0, N=32, stretch=1.0, t_end=3.0, output_every=0.1)
     with xr.open_dataset(run(m, cfg, tmp_path, progress=False)) as ds:
         a = np.abs(ds.area_drift.values).max()
         v = np.abs(ds.volume_drift.values).max()
@@ -227,7 +228,7 @@ def test_wall_clock_checkpoint_when_steps_are_few(tmp_path, monkeypatch):
     from vesicle_core.solver import simulate
 
     m = _mesh(level=2)
-    cfg = RunConfig(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=10**6, Lambda=1e4,
+    cfg = unit_run(chi=10.0, N=16, stretch=0.1, t_end=0.1, output_every=0.02, checkpoint_every=10**6, Lambda=1e4,
                     K_volume=1e5, dt=2e-4)
     saved = []
     save = simulate.save_checkpoint

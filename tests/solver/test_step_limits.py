@@ -5,9 +5,9 @@ near the tolerance it is given."""
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver import membrane as B
 from vesicle_core.solver.integrators import Inextensible
 from vesicle_core.solver.mobility import IBMSolver
@@ -23,7 +23,7 @@ def test_linearisation_strain_is_second_order_in_the_step(space, cg_tol):
     when the CG stops early (cg_tol 1e-4): its residual, which does not shrink with dt, is not part of the estimate
     (with it, the limit collapsed the elongated vesicle's step)."""
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space=space, cg_tol=cg_tol, cg_maxiter=500,
+    cfg = unit_run(chi=50.0, N=16, scheme="inextensible", tension_space=space, cg_tol=cg_tol, cg_maxiter=500,
                     mesh_ale="area" if space == "harmonic" else "none")  # the ALE's own motion is not counted
     s = IBMSolver(m.faces, m.vertices, cfg)
     integ = Inextensible(s, 1.0, X0=m.vertices)
@@ -47,7 +47,7 @@ def test_dt_strain_bounds_the_held_strain_of_a_run(tmp_path):
                 output_every=0.05, cg_tol=1e-9)
     out = {}
     for tol in (1.0, 2e-5):
-        ds = xr.open_dataset(run(m, RunConfig(dt_strain=tol, **base), tmp_path / str(tol), progress=False)).load()
+        ds = xr.open_dataset(run(m, unit_run(dt_strain=tol, **base), tmp_path / str(tol), progress=False)).load()
         X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
         topo = B.Topology(m.faces, m.n_vertices)
         a0 = B.geometry(X[0], topo).area
@@ -71,7 +71,7 @@ def test_a_collapsing_step_stops_the_run_and_names_its_limit(tmp_path, monkeypat
 
     monkeypatch.setattr(Inextensible, "linearisation_strain", lambda self, X, dX: 1.0)  # 500x dt_strain, fixed
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
+    cfg = unit_run(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
                     output_every=0.05)
     with pytest.raises(NumericalInstability, match=r"collapsed .* \(set by the dt_strain limit\)"):
         run(m, cfg, tmp_path / "run", progress=False)
@@ -84,7 +84,7 @@ def test_the_bending_limit_is_re_measured_on_the_current_shape():
     from vesicle_core.solver.step_size import stability_dt
 
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="triangle", dt_safety=0.5)
+    cfg = unit_run(chi=50.0, N=16, scheme="inextensible", tension_space="triangle", dt_safety=0.5)
     s = IBMSolver(m.faces, m.vertices, cfg)
     dt0, _ = stability_dt(s, s.xp.asarray(m.vertices))
     integ = Inextensible(s, dt0, X0=m.vertices)
@@ -112,6 +112,7 @@ def _dense(product, X):
     return J
 
 
+@pytest.mark.slow  # an eigenvalue study of the linearised velocity (pytest -m slow; CI runs it)
 @pytest.mark.parametrize("penalty", [False, True])
 def test_the_stiffest_mode_is_the_largest_eigenvalue_of_the_linearised_velocity(penalty):
     """On a non-spherical shape with a 3% volume error (so that the volume penalty pushes with a pressure), with
@@ -125,7 +126,7 @@ def test_the_stiffest_mode_is_the_largest_eigenvalue_of_the_linearised_velocity(
     from vesicle_core.solver.step_size import stiffest_mode, stiffness_product
 
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="explicit" if penalty else "inextensible", dtype="float64")
+    cfg = unit_run(chi=50.0, N=16, scheme="explicit" if penalty else "inextensible", dtype="float64")
     s = IBMSolver(m.faces, m.vertices, cfg)
     X = 1.01 * np.asarray(m.vertices, float) * (1 + 0.003 * np.random.default_rng(1).standard_normal((m.n_vertices, 1)))
     own = np.abs(np.linalg.eigvals(_dense(stiffness_product(s, X), X))).max()

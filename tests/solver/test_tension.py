@@ -4,10 +4,10 @@
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.errors import NumericalInstability
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver import membrane as B
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver
 from vesicle_core.solver.simulate import run
@@ -27,7 +27,7 @@ from vesicle_core.solver.trajectory import CHECKPOINT, FAILURE, TRAJECTORY
 @pytest.fixture(scope="module")
 def setup():
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible")
+    cfg = unit_run(chi=50.0, N=16, scheme="inextensible")
     s = IBMSolver(m.faces, m.vertices, cfg)
     X = s.xp.asarray(m.vertices)
     F, geo = s.forces(X)
@@ -132,7 +132,7 @@ def test_unconverged_solve_raises(setup):
 
 def _run_cfg(**kw):
     base = {"chi": 50.0, "N": 16, "scheme": "inextensible", "stretch": 0.3, "t_end": 0.2, "output_every": 0.05}
-    return RunConfig(**{**base, **kw})
+    return unit_run(**{**base, **kw})
 
 
 @pytest.fixture(scope="module")
@@ -227,7 +227,7 @@ def _local_case(n_vertices):
     from vesicle_core.solver.tension import LocalPreconditioner
 
     m = Mm.make_vesicle("quasiuniform", n_vertices=n_vertices, axes=(1.0, 0.8, 1.0))
-    s = IBMSolver(m.faces, m.vertices, RunConfig(chi=268.0, N=32, scheme="inextensible"))
+    s = IBMSolver(m.faces, m.vertices, unit_run(chi=268.0, N=32, scheme="inextensible"))
     X = s.xp.asarray(m.vertices)
     F, geo = s.forces(X)
     mob = IBMMobility(s.coupler, s.stokes)
@@ -326,6 +326,7 @@ def test_smallest_eigenvalue_lanczos_and_its_safe_bound(monkeypatch):
     assert smallest_eigenvalue(A) <= exact  # Gershgorin: a lower bound, so the shift errs on the safe side
 
 
+@pytest.mark.slow  # a dense eigenvalue study of the 642-vertex local mobility (pytest -m slow; CI runs it)
 def test_local_preconditioner_shifts_an_indefinite_local_mobility():
     """With edges ~ h (642 vertices at N = 32) the truncated pair mobility within 3h is indefinite; the build shifts
     it so P is positive definite, and the CG then reaches the compliance-preconditioned solution."""

@@ -5,10 +5,10 @@ the solve (the projected constraint met), the inf-sup constant, the run paramete
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver import membrane as B
 from vesicle_core.solver.integrators import BENDING_REFRESH
 from vesicle_core.solver.mobility import IBMMobility, IBMSolver
@@ -57,7 +57,7 @@ def test_operator_symmetric_and_positive_on_random_vectors(setup):
 def test_rho_grows_with_l_and_vanishes_for_the_uniform_tension_on_a_sphere():
     """On a sphere a uniform tension moves nothing (rho_0 ~ 0) while l >= 1 tensions drive a flow."""
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 1.0, 1.0))
-    cfg = RunConfig(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space="harmonic")
+    cfg = unit_run(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space="harmonic")
     s = IBMSolver(m.faces, m.vertices, cfg)
     X = s.xp.asarray(m.vertices)
     _, geo = s.forces(X)
@@ -121,10 +121,10 @@ def test_fixed_tension_keeps_l0_and_leaves_the_total_area_free(setup):
 
 def test_tension_fixed_is_refused_outside_the_harmonic_space():
     with pytest.raises(ConfigError, match="tension_fixed"):
-        RunConfig(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="triangle", tension_fixed=100.0)
+        unit_run(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="triangle", tension_fixed=100.0)
     with pytest.raises(ConfigError, match="tension_fixed"):
-        RunConfig(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="harmonic", tension_fixed=-1.0)
-    RunConfig(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="harmonic", tension_fixed=100.0)
+        unit_run(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="harmonic", tension_fixed=-1.0)
+    unit_run(chi=0.0, stretch=0.0, scheme="inextensible", tension_space="harmonic", tension_fixed=100.0)
 
 
 def test_inf_sup_bounded_for_harmonics_small_for_triangles():
@@ -147,11 +147,11 @@ def test_default_l_max_is_half_the_resolvable_l():
 
 def test_bad_tension_space_names_the_field():
     with pytest.raises(ConfigError, match="tension_space"):
-        RunConfig(scheme="inextensible", tension_space="spectral")
+        unit_run(scheme="inextensible", tension_space="spectral")
     with pytest.raises(ConfigError, match="tension_space"):
-        RunConfig(scheme="inextensible", tension_space="harmonic", cg_precond="local")
+        unit_run(scheme="inextensible", tension_space="harmonic", cg_precond="local")
     with pytest.raises(ConfigError, match="tension_l_max"):
-        RunConfig(scheme="inextensible", tension_space="harmonic", tension_l_max=-1)
+        unit_run(scheme="inextensible", tension_space="harmonic", tension_l_max=-1)
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))
     topo = B.Topology(m.faces, m.n_vertices)
     with pytest.raises(ConfigError, match="tension_l_max"):
@@ -162,7 +162,7 @@ def test_harmonic_run_tension_in_the_space_and_smooth(tmp_path):
     """A short run: the stored tension lies in the space, the constrained (projected) strain is the compliance's,
     the run records its solves including the rho_l measurements, and the tension has no checkerboard."""
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
+    cfg = unit_run(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
                     output_every=0.05)
     ds = xr.open_dataset(run(m, cfg, tmp_path, progress=False)).load()
     X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
@@ -203,7 +203,7 @@ def test_area_ale_holds_the_triangles_without_changing_the_shape(tmp_path):
             "t_end": 0.05, "output_every": 0.05}
     out = {}
     for ale in ("none", "area", "shape", "quality"):
-        ds = xr.open_dataset(run(m, RunConfig(**base, mesh_ale=ale), tmp_path / ale, progress=False)).load()
+        ds = xr.open_dataset(run(m, unit_run(**base, mesh_ale=ale), tmp_path / ale, progress=False)).load()
         X = np.stack([ds.node_x.values, ds.node_y.values, ds.node_z.values], -1)
         topo = B.Topology(m.faces, m.n_vertices)
         strain = float(ds.triangle_strain_max.values.max())  # against A0, or the lipid area the triangles carry
@@ -251,6 +251,7 @@ def _quality(X, faces):
     return 4 * np.sqrt(3) * A / (e**2).sum(axis=1)
 
 
+@pytest.mark.slow  # a run through the stretch (pytest -m slow; CI runs it)
 def test_shape_ale_keeps_the_triangles_shape_under_a_shear():
     """A differential rotation keeps the areas and shears the triangles: the area ALE then has nothing to correct and
     the worst triangle loses a quarter of its quality; mesh_ale: shape keeps the start's quality (min and median
@@ -269,6 +270,7 @@ def test_shape_ale_keeps_the_triangles_shape_under_a_shear():
     assert np.abs(B.geometry(Xs, topo).area / B.geometry(X0, topo).area - 1).max() < 1e-3
 
 
+@pytest.mark.slow  # a run through the stretch (pytest -m slow; CI runs it)
 def test_quality_ale_restores_the_triangles_that_lose_their_shape():
     """mesh_ale: quality adds the angle rows only where a triangle has fallen below Q_HI of its reference quality,
     at full weight below Q_LO. Under the differential rotation every triangle then keeps more than Q_LO of its own
@@ -399,7 +401,7 @@ def test_harmonic_tension_relaxes_a_mode_as_the_grid_allows(l):
     v, f = Rx._sphere("quasiuniform", nv, 0)
     n = v @ Rx._rotation().T
     X = n * (1.0 + 1e-3 * Rx._y_l0(l, v[:, 2]))[:, None]
-    s = IBMSolver(f, X, RunConfig(chi=0.0, stretch=0.0, N=N, Lambda=0.0, K_volume=0.0, scheme="projection"))
+    s = IBMSolver(f, X, unit_run(chi=0.0, stretch=0.0, N=N, Lambda=0.0, K_volume=0.0, scheme="projection"))
     F, geo = s.forces(X)
     mob = IBMMobility(s.coupler, s.stokes)
     mob.prepare(X)
@@ -422,7 +424,7 @@ def test_failed_harmonic_tension_solve_stops_the_run(tmp_path):
     from vesicle_core.solver.trajectory import FAILURE, TRAJECTORY
 
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
+    cfg = unit_run(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
                     output_every=0.05, cg_tol=1e-14, cg_maxiter=1)
     with pytest.raises(NumericalInstability, match="tension solve"):
         run(m, cfg, tmp_path, progress=False)
@@ -439,7 +441,7 @@ def test_harmonic_l_star_does_not_move_with_the_mesh_at_a_fixed_grid(tmp_path):
     out = {}
     for nv in (642, 2562):
         m = Mm.make_vesicle("quasiuniform", n_vertices=nv, axes=(1.0, 0.8, 1.0))
-        cfg = RunConfig(chi=267.8, N=64, scheme="inextensible", tension_space="harmonic", stretch=1.0, t_end=1.0,
+        cfg = unit_run(chi=267.8, N=64, scheme="inextensible", tension_space="harmonic", stretch=1.0, t_end=1.0,
                         output_every=0.02, seed_spectrum="thermal")
         with xr.open_dataset(run(m, cfg, tmp_path / str(nv), progress=False)) as ds:
             s = spectra_from_trajectory(ds.load())

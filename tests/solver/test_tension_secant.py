@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from unit_run import unit_run
 
 from vesicle_core.errors import ConfigError
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.tension_harmonic import HarmonicTensionSolver
 from vesicle_core.solver.tension_secant import SecantPreconditioner
 
@@ -97,4 +97,4 @@ def test_secant_solves_agree_with_the_diagonal_and_need_fewer_iterations_on_whit
 
 def test_secant_applies_to_the_harmonic_tension_only():
     with pytest.raises(ConfigError, match="cg_precond 'secant'.*tension_space 'harmonic'"):
-        RunConfig(scheme="inextensible", tension_space="triangle", cg_precond="secant")
+        unit_run(scheme="inextensible", tension_space="triangle", cg_precond="secant")

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import xarray as xr
 from scipy import stats
+from unit_run import unit_run
 
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as Mm
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.integrators import Inextensible
 from vesicle_core.solver.mobility import IBMSolver
 from vesicle_core.solver.simulate import run
@@ -25,7 +25,7 @@ def _thermal_setup(space):
     velocity is the mean of two consecutive such draws, tests/solver/test_fluctuations.py)."""
     m = Mm.make_vesicle("icosphere", level=1, axes=(1.0, 0.9, 1.0))
     extra = {"tension_l_max": 3} if space == "harmonic" else {}
-    cfg = RunConfig(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space=space, Lambda=1e12,
+    cfg = unit_run(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space=space, Lambda=1e12,
                     cg_tol=1e-12, cg_maxiter=2000, kT=KT, noise_seed=11, noise_scheme="euler",
                     **extra)
     s = IBMSolver(m.faces, m.vertices, cfg)
@@ -139,7 +139,7 @@ def test_projected_noise_has_the_constrained_mobility_covariance(either_space):
 ])
 def test_bad_thermal_input_names_the_field(kw, match):
     with pytest.raises(ConfigError, match=match):
-        RunConfig(**kw)
+        unit_run(**kw)
 
 
 def test_a_noisy_run_completes_holds_area_and_volume_and_differs_by_seed(tmp_path):
@@ -148,9 +148,9 @@ def test_a_noisy_run_completes_holds_area_and_volume_and_differs_by_seed(tmp_pat
             "t_end": 0.1, "output_every": 0.05, "kT": KT}
     out = {}
     for seed in (1, 2):
-        out[seed] = xr.open_dataset(run(m, RunConfig(**base, noise_seed=seed), tmp_path / str(seed),
+        out[seed] = xr.open_dataset(run(m, unit_run(**base, noise_seed=seed), tmp_path / str(seed),
                                         progress=False)).load()
-    cold = xr.open_dataset(run(m, RunConfig(**{**base, "kT": 0.0}), tmp_path / "cold", progress=False)).load()
+    cold = xr.open_dataset(run(m, unit_run(**{**base, "kT": 0.0}), tmp_path / "cold", progress=False)).load()
     for ds in out.values():
         assert ds.attrs["kT"] == KT
         assert np.abs(ds.area_drift.values).max() < 5e-3 and np.abs(ds.volume_drift.values).max() < 5e-3
@@ -171,7 +171,7 @@ def test_a_noisy_run_that_drifts_beyond_max_drift_stops_as_unstable(tmp_path):
     from vesicle_core.solver.trajectory import FAILURE, TRAJECTORY
 
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
-    cfg = RunConfig(chi=0.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.0, t_end=0.05,
+    cfg = unit_run(chi=0.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.0, t_end=0.05,
                     output_every=0.005, kT=10 * KT, noise_seed=3, max_drift=5e-5)
     with pytest.raises(NumericalInstability, match="drift"):
         run(m, cfg, tmp_path / "hot", progress=False)
@@ -200,7 +200,7 @@ def test_the_noise_step_limit_caps_the_adaptive_step_at_the_asked_displacement()
     from vesicle_core.solver.trajectory import State
 
     m = Mm.make_vesicle("icosphere", level=1, axes=(1.0, 0.9, 1.0))
-    cfg = RunConfig(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space="harmonic", tension_l_max=3,
+    cfg = unit_run(chi=0.0, stretch=0.0, N=16, scheme="inextensible", tension_space="harmonic", tension_l_max=3,
                     kT=KT, noise_seed=11, noise_step=0.05)
     s = IBMSolver(m.faces, m.vertices, cfg)
     integ = Inextensible(s, 1.0, X0=m.vertices)
@@ -220,4 +220,4 @@ def test_the_noise_step_limit_caps_the_adaptive_step_at_the_asked_displacement()
 def test_noise_step_outside_its_range_is_refused():
     for bad in (0.0, -0.1, 1.5):
         with pytest.raises(ConfigError, match=r"noise_step must lie in \(0.0, 1.0\]"):
-            RunConfig(noise_step=bad)
+            unit_run(noise_step=bad)

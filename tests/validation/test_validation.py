@@ -6,11 +6,11 @@ import sys
 import numpy as np
 import pytest
 import xarray as xr
+from unit_run import unit_run
 
 from vesicle_core.analysis.spectra import spectra_from_trajectory
 from vesicle_core.analysis.theory import run_theory
 from vesicle_core.geometry import mesh as M
-from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver.simulate import run
 from vesicle_core.validation.box import box_comparison
 from vesicle_core.validation.report import render, render_section
@@ -23,7 +23,7 @@ def box_runs(tmp_path_factory):
     m = M.make_vesicle("icosphere", level=2)
     out = {}
     for N, L in ((16, 5.0), (24, 7.5)):  # same h = 0.3125
-        cfg = RunConfig(chi=10.0, N=N, L=L, stretch=0.2, t_end=0.2, output_every=0.05, scheme="projection", dt=2.5e-4)
+        cfg = unit_run(chi=10.0, N=N, L=L, stretch=0.2, t_end=0.2, output_every=0.05, scheme="projection", dt=2.5e-4)
         out[L] = run(m, cfg, d / f"L{L}", progress=False)
     return out
 

@@ -25,11 +25,13 @@ def add_mesh(sub):
             kw.update(choices=q.choices)
         elif q.kind == "int":
             kw.update(type=int_in(flag, int(q.lo), int(q.hi)))
-        p.add_argument(flag, default=q.default, help=f"{q.help} ({q.allowed()}; default {q.default})", **kw)
+        kw.setdefault("default", q.default)
+        p.add_argument(flag, help=f"{q.help} ({q.allowed()}; default {q.default})", **kw)
 
     table_arg("--family")
-    table_arg("--level")
-    table_arg("--n-vertices")
+    # --level alone sets the quasi-uniform family's vertex count too (n_vertices null), as before its default moved
+    table_arg("--level", default=None)
+    table_arg("--n-vertices", default=None)
     table_arg("--seed")
     table_arg("--lloyd-steps")
     p.add_argument("--axes", type=positive_float("--axes"), nargs=3, metavar=("A", "B", "C"), default=(1.0, 0.8, 1.0),
@@ -40,11 +42,21 @@ def add_mesh(sub):
     p.set_defaults(func=_cmd_mesh)
 
 
+def mesh_resolution(level, n_vertices):
+    """(level, n_vertices) of ``vesicle mesh`` from its options (None: not given): the table's defaults, except that
+    --level alone also sets the quasi-uniform family's vertex count (n_vertices null: 10 4^level + 2)."""
+    from ..model.parameters import MESH
+
+    if n_vertices is None and level is None:
+        n_vertices = MESH["n_vertices"].default
+    return (MESH["level"].default if level is None else level), n_vertices
+
+
 def _cmd_mesh(a):
     from ..geometry import mesh as M
-
     if a.delta is not None:
         check_range("--delta", a.delta, 0.0, 50.0)
+    a.level, a.n_vertices = mesh_resolution(a.level, a.n_vertices)
     m = M.make_vesicle(a.family, level=a.level, axes=tuple(a.axes), R=a.radius, target_delta=a.delta,
                        n_vertices=a.n_vertices, seed=a.seed, lloyd_steps=a.lloyd_steps)
     M.save(m, a.output)

@@ -6,6 +6,9 @@ parameter tables of config/README.md are generated from these tables by :mod:`ve
 (``python -m vesicle_core.model.parameter_docs --write``), and tests/model/test_parameters.py fails when any of them
 drifts. ``vesicle params`` prints the tables with defaults.
 Cross-parameter rules (N even, no inextensible scheme at Re > 0, ...) live in ``RunConfig.__post_init__``.
+
+The defaults are the recommended method, the default job's (config/config.yaml; tests/model/test_defaults.py holds
+the two together), so `vesicle mesh` then `vesicle run` without options run it; the paper's: run_config.PAPER_METHOD.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import ConfigError, check_range
-from .resolution import DEFAULT_KERNEL, KERNELS
+from .resolution import KERNELS
 
 
 def _yaml_number_hint(text) -> str:
@@ -130,7 +133,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     Parameter(
         "chi", 67.0, "float", "dimensionless extensional rate gamma_dot mu R^3 / kappa", "1", 0.0, 1e7, workflow=False
     ),
-    Parameter("N", 32, "int", "grid nodes per axis", "", 8, 4096, multiple_of=2),
+    Parameter("N", 128, "int", "grid nodes per axis", "", 8, 4096, multiple_of=2),
     Parameter(
         "L",
         5.0,
@@ -173,7 +176,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "kernel",
-        DEFAULT_KERNEL,
+        "bao6",
         "str",
         "regularised delta: Peskin's 4-point (eq. 27), Roma-Peskin-Berger 3-point, "
         "Bao-Kaye-Peskin 6-point (kernels.py)",
@@ -181,7 +184,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "coupling",
-        "kernel",
+        "sharp",
         "str",
         "fluid-membrane coupling. kernel: spread and interpolate with the kernel (eqs. 16, 28; the paper's); "
         "sharp: also divide the spread force's spectrum by the kernel's squared Fourier transform, floored at "
@@ -201,7 +204,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "scheme",
-        "projection",
+        "inextensible",
         "str",
         "time integrator (integrators.py). explicit: the paper's area penalty alone; "
         "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
@@ -227,7 +230,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         0.0,
         1.0,
     ),
-    Parameter("t_end", 1.5, "float", "duration after the reversal", "gamma_dot t", 0.0, 1e4),
+    Parameter("t_end", 1.0, "float", "duration after the reversal", "gamma_dot t", 0.0, 1e4),
     Parameter(
         "dt",
         "power",
@@ -327,7 +330,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "tension_space",
-        "triangle",
+        "harmonic",
         "str",
         "inextensible: the tension's space. triangle: one tension per triangle, every triangle's area held "
         "(near-null checkerboard modes); harmonic: a Galerkin tension in real spherical harmonics up to "
@@ -348,7 +351,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "mesh_ale",
-        "none",
+        "quality",
         "str",
         "tension_space harmonic: area adds a tangential vertex velocity (least squares, no Stokes solve) that holds "
         "the triangle areas the harmonic tension leaves free, so the mesh keeps carrying the strain; shape also "
@@ -385,7 +388,7 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "seed_spectrum",
-        "mesh",
+        "thermal",
         "str",
         "wrinkle seed at the reversal: mesh noise only, or the PA's thermal spectrum (seeding.py)",
         choices=("mesh", "thermal"),
@@ -448,24 +451,17 @@ MESH_PARAMETERS: tuple[Parameter, ...] = (
     ),
     Parameter(
         "level",
-        3,
+        4,
         "int",
-        "icosphere level: 10 4^level + 2 vertices (42, 162, 642, 2562, 10242, 40962 ...); also the "
-        "default vertex count of the quasi-uniform family",
+        "icosphere level: 10 4^level + 2 vertices (42, 162, 642, 2562, 10242, 40962 ...); also the vertex count of "
+        "the quasi-uniform family when n_vertices is null (`vesicle mesh --level` without --n-vertices)",
         "",
         0,
         9,
     ),
-    Parameter(
-        "n_vertices",
-        None,
-        "int",
-        "vertex count of the quasi-uniform family (null: that of level); ignored by the icosphere",
-        "",
-        12,
-        20000000,
-        nullable=True,
-    ),
+    Parameter("n_vertices", 9512, "int", "vertex count of the quasi-uniform family (null: that of level); ignored by "
+              "the icosphere. The default, 9512, is a mean edge of ~h on the default grid (N = 128, L = 5 R: "
+              "mesh.vertices_for_edge), what the sharp coupling needs", "", 12, 20000000, nullable=True),
     Parameter("seed", 0, "int", "seed of the quasi-uniform family", "", 0, 2**31 - 1),
     Parameter("lloyd_steps", 8, "int", "Lloyd relaxation steps (quasi-uniform)", "", 0, 1000),
     Parameter(

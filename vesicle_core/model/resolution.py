@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 KERNELS = {"peskin4": 4, "roma3": 3, "bao6": 6}  # name -> support width (nodes per axis)
-#: the paper's kernel, eq. (27): the default of every function here and of the run parameter `kernel`
+#: the paper's kernel, eq. (27): the default of the functions here and of the kernel-level code (the run parameter
+#: `kernel` defaults to the recommended method's, bao6: model/parameters.py)
 DEFAULT_KERNEL = "peskin4"
 
 # How far each kernel resolves a membrane mode: the IBM's relaxation rate of a sphere mode Y_l0 over the

@@ -14,7 +14,27 @@ from dataclasses import asdict, dataclass, fields
 
 from ..errors import ConfigError
 from .parameters import RUN_PARAMETERS, SHARP_FLOOR
-from .resolution import DEFAULT_KERNEL
+
+#: the defaults that changed when the run parameters' defaults became the recommended method (version 0.1.0 kept
+#: these): a trajectory's attributes lack a key only when it was written before that key existed, and it then ran
+#: with the key's default of the time, not today's (RunConfig.from_attrs)
+DEFAULTS_BEFORE_RECOMMENDED = {"N": 32, "kernel": "peskin4", "coupling": "kernel", "scheme": "projection", "t_end": 1.5,
+                               "tension_space": "triangle", "mesh_ale": "none", "seed_spectrum": "mesh"}
+
+
+#: the run parameters of the paper's own method (Secs. II-IV), where they differ from the defaults: the explicit
+#: scheme (the area penalty alone), the kernel coupling with Peskin's 4-point kernel (eqs. 16, 27, 28), the
+#: barycentric vertex area, and no seed but the mesh's own noise (the paper's IBM has no thermal noise). It needs a
+#: mesh of edge ~2h (the paper: 26 070 vertices at 512^3; 2562 at N = 128). config/paper_method.yaml runs it.
+PAPER_METHOD = {
+    "scheme": "explicit",
+    "coupling": "kernel",
+    "kernel": "peskin4",
+    "area_model": "barycentric",
+    "seed_spectrum": "mesh",
+    "tension_space": "triangle",
+    "mesh_ale": "none",
+}
 
 
 @dataclass(frozen=True)
@@ -23,21 +43,21 @@ class RunConfig:
     :data:`vesicle_core.model.parameters.RUN_PARAMETERS`, checked on creation, plus the rules that tie them together."""
 
     chi: float = 67.0
-    N: int = 32
+    N: int = 128
     L: float = 5.0
     Re: float = 0.0
     Lambda: float | None = None
     K_volume: float = 1.0e7
     K_area: float = 0.0
     area_model: str = "voronoi"
-    kernel: str = DEFAULT_KERNEL
-    coupling: str = "kernel"
+    kernel: str = "bao6"
+    coupling: str = "sharp"
     sharp_floor: float = SHARP_FLOOR
-    scheme: str = "projection"
+    scheme: str = "inextensible"
     projection_refresh: int = 10
     stretch: float = 1.0
     stationary_tol: float = 0.0
-    t_end: float = 1.5
+    t_end: float = 1.0
     dt: float | str = "power"  # a fixed step in tau, or "power" / "formula"
     dt_safety: float = 0.8
     output_every: float = 0.02
@@ -49,13 +69,13 @@ class RunConfig:
     cg_tol: float = 1.0e-5
     cg_maxiter: int = 200
     cg_precond: str = "auto"
-    tension_space: str = "triangle"
+    tension_space: str = "harmonic"
     tension_l_max: int | None = None
-    mesh_ale: str = "none"
+    mesh_ale: str = "quality"
     tension_fixed: float | None = None
     dt_growth: float = 0.1
     dt_strain: float = 2.0e-3
-    seed_spectrum: str = "mesh"
+    seed_spectrum: str = "thermal"
     seed_scale: float = 1.0
     seed: int = 0
     kT: float = 0.0
@@ -78,7 +98,7 @@ class RunConfig:
                               f"tension_space 'harmonic' only, got '{self.tension_space}'")
         if self.mesh_ale != "none" and self.tension_space != "harmonic":
             raise ConfigError(f"mesh_ale '{self.mesh_ale}' applies to tension_space 'harmonic' only (the triangle "
-                              "tension holds every triangle's area itself)")
+                              "tension holds every triangle's area itself); set mesh_ale: none")
         if self.tension_fixed is not None and (self.scheme != "inextensible" or self.tension_space != "harmonic"):
             raise ConfigError(f"tension_fixed = {self.tension_fixed:g} needs scheme 'inextensible' with tension_space "
                               f"'harmonic' (it fixes that space's l = 0 coefficient); got scheme '{self.scheme}', "
@@ -97,7 +117,8 @@ class RunConfig:
                               "second thermal spectrum on top; set seed_spectrum: mesh for noisy runs")
         if self.seed_spectrum != "mesh" and self.stationary_tol > 0:
             raise ConfigError("seed_spectrum 'thermal' needs a fixed stretch (stationary_tol = 0): the seed goes on "
-                              "the shape before the frame at the reversal")
+                              "the shape before the frame at the reversal; set stationary_tol: 0 or "
+                              "seed_spectrum: mesh")
 
     @property
     def tension_preconditioner(self) -> str:
@@ -135,7 +156,8 @@ class RunConfig:
     def from_attrs(cls, attrs: dict) -> "RunConfig":
         """The run parameters of a trajectory's attributes (the inverse of :meth:`as_attrs` after a netCDF round
         trip: None stored as "default", booleans as "True"/"False", numbers as NumPy scalars); other keys are
-        ignored."""
+        ignored. A key the attributes lack takes its default from before the recommended method became the default
+        (:data:`DEFAULTS_BEFORE_RECOMMENDED`): every trajectory written since records every key."""
         names = {f.name for f in fields(cls)}
 
         def value(v):
@@ -143,7 +165,7 @@ class RunConfig:
                 return {"default": None, "True": True, "False": False}.get(v, v)
             return v.item() if hasattr(v, "item") else v
 
-        return cls.from_dict({k: value(v) for k, v in attrs.items() if k in names})
+        return cls.from_dict({**DEFAULTS_BEFORE_RECOMMENDED, **{k: value(v) for k, v in attrs.items() if k in names}})
 
     def as_attrs(self) -> dict:
         out = {}
@@ -152,6 +174,13 @@ class RunConfig:
         out["Lambda_eff"] = self.Lambda_eff
         out["h"] = self.h
         return out
+
+
+def legacy_config(**changes) -> RunConfig:
+    """RunConfig of the defaults before they became the recommended method (DEFAULTS_BEFORE_RECOMMENDED: projection
+    scheme, triangle tension, kernel coupling, 4-point kernel, mesh-noise seed, N = 32), with ``changes``: what the
+    studies in benchmarks/ and the measurement history in docs/history/ ran when they left a key unset."""
+    return RunConfig(**{**DEFAULTS_BEFORE_RECOMMENDED, **changes})
 
 
 def default_lambda(chi: float, scheme: str = "explicit") -> float:

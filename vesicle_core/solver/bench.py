@@ -43,7 +43,10 @@ def bench_case(N, level, backend="numpy", repeats=10, scheme="projection", L=5.0
     from .trajectory import State
 
     m = M.make_vesicle("icosphere", level=level)
-    cfg = RunConfig(chi=67.0, N=N, L=L, scheme=scheme, backend=backend, dt=1e-6)
+    # the kernel coupling with the 4-point kernel, as this benchmark has always timed (its numbers in the docs are
+    # of it), whatever the run parameters' defaults (the sharp coupling with the 6-point kernel since they became
+    # the recommended method)
+    cfg = RunConfig(chi=67.0, N=N, L=L, scheme=scheme, backend=backend, dt=1e-6, coupling="kernel", kernel="peskin4")
     s = IBMSolver(m.faces, m.vertices, cfg)
     be, xp = s.be, s.xp
     X = xp.asarray(m.vertices * 1.001)
