@@ -44,6 +44,7 @@ from ..io import hold_run_lock
 from ..model.parameters import CHECKPOINT_WALL_S
 from ..model.run_config import RunConfig
 from . import membrane as B
+from . import step_limits
 from .fluctuations import noise_mesh_warning
 from .mobility import IBMSolver
 from .step_size import initial_dt
@@ -76,9 +77,7 @@ class _Progress:
     """
 
     def __init__(self, total, initial, enabled, unit="step"):
-        self.total, self.n = total, initial
-        self.unit = unit
-        self.bar = None
+        self.total, self.n, self.unit, self.bar = total, initial, unit, None
         self.t0 = _time.perf_counter()
         self.n0 = initial
         self.last_pct = -1
@@ -367,7 +366,7 @@ class _Run:
         q = B.triangle_quality(geo)  # 4 sqrt(3) A / sum l^2, and the triangle strain against the reference mesh
         ref = mem.ref.face_area if state.lipid_area is None else self.xp.asarray(state.lipid_area)
         sc.update(mesh_quality_min=float(q.min()), mesh_quality_median=float(self.xp.median(q)),
-                  triangle_strain_max=float(self.xp.abs(geo.area / ref - 1).max()))
+                  triangle_strain_max=float(self.xp.abs(geo.area / ref - 1).max()), **step_limits.frame_scalars(state))
         self.writer.append(self.be.asnumpy(X), self.be.asnumpy(sig_l).astype(np.float32), sc)
         state.n_frames += 1
         return sc
@@ -386,20 +385,21 @@ class _Run:
 
     def _step_length(self, X, geo) -> float | None:
         """Set ``dt_step``, the length of the next step; -> the time of the event it leads to (adaptive runs)."""
+        state, cfg, T = self.state, self.cfg, self.T
         if not self.adaptive:
             self.dt_step = self.dt
+            step_limits.record(state, {"fixed": self.dt}, "fixed")
             return None
-        state, cfg, T = self.state, self.cfg, self.T
         # land exactly on the next frame, the reversal or the end, in equal steps
-        t_event = state.next_output_t
-        t_event = min(t_event, self.t_stretch_end if state.phase == "stretch" else state.t_reverse + cfg.t_end * T)
+        t_event = min(state.next_output_t,
+                      self.t_stretch_end if state.phase == "stretch" else state.t_reverse + cfg.t_end * T)
         dt_want = self.integ.next_dt(state, geo)
         if not dt_want > DT_COLLAPSE * self.dt:
             # a healthy run stays within ~1e-2 of the bending limit; the elongated vesicle at 256^3 crept on at
             # 3e-12 tau per step for 700 steps with a folded mesh (tension 1e8) before this bound existed
-            limit = getattr(self.integ, "binding_limit", None)
             self.fail(f"time step collapsed to {dt_want:.3g} tau, {dt_want / self.dt:.2g} x the bending limit "
-                      f"{self.dt:.3g} tau" + (f" (set by the {limit} limit)" if limit else ""), X)
+                      f"{self.dt:.3g} tau (set by the {self.integ.binding_limit} limit)", X)
+        step_limits.record(state, self.integ.limits, self.integ.binding_limit)
         remaining = t_event - state.t
         self.dt_step = remaining / max(1, math.ceil(remaining / dt_want - 1e-6))
         return t_event
