@@ -38,6 +38,7 @@ def test_the_recorded_limit_is_the_argmin_of_the_recorded_allowed_steps(adaptive
     assert (code[1:] >= 0).all()
     np.testing.assert_array_equal(code[1:], np.nanargmin(dts[1:], axis=1))
     assert np.isnan(dts[1:, LIMITS.index("fixed")]).all() and np.isnan(dts[1:, LIMITS.index("noise_step")]).all()
+    assert np.isnan(dts[1:, LIMITS.index("event")]).all()  # several steps between frames here: never set by them
     for name in ("bending", "flow"):  # these apply at every step of a flowing run
         assert np.isfinite(ds[f"dt_limit_{name}"].values[1:]).all(), name
     # growth: where a mode grows, after the reversal (the compressing flow makes the tension negative); none
@@ -65,12 +66,24 @@ def test_the_counts_add_up_to_the_steps_and_hold_the_last_steps_limit(adaptive_r
 def test_recording_changes_no_number_of_the_run(adaptive_run, tmp_path, monkeypatch):
     """The same run with the recording switched off gives the same positions, tensions and steps, bit for bit."""
     m, ds = adaptive_run
-    monkeypatch.setattr(simulate.step_limits, "record", lambda state, limits, binding: None)
+    monkeypatch.setattr(simulate.step_limits, "record", lambda *args: None)
     off = xr.open_dataset(run(m, RunConfig(**ADAPTIVE), tmp_path / "off", progress=False)).load()
     assert (off.step_limit.values == -1).all()  # the switch worked
     assert off.attrs["steps"] == ds.attrs["steps"]
     for name in ("node_x", "node_y", "node_z", "face_tension", "dt_tau", "tension"):
         np.testing.assert_array_equal(off[name].values, ds[name].values, err_msg=name)
+
+
+def test_frames_closer_than_the_step_set_it(tmp_path):
+    """Frames closer together than every limit allows: each step goes to the next frame in one, recorded as the
+    event limit, with the time that was left as its allowed step."""
+    m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
+    cfg = RunConfig(**{**ADAPTIVE, "stretch": 0.01, "t_end": 0.01, "output_every": 0.001})
+    ds = xr.open_dataset(run(m, cfg, tmp_path, progress=False)).load()
+    assert (ds.step_limit.values[1:] == LIMITS.index("event")).all()
+    assert int(ds.steps_event.sum()) == ds.attrs["steps"] == ds.sizes["time"] - 1
+    np.testing.assert_allclose(ds.dt_limit_event.values[1:], ds.dt_tau.values[1:], rtol=1e-9)
+    np.testing.assert_array_equal(ds.step_limit.values[1:], np.nanargmin(_dts(ds)[1:], axis=1))
 
 
 def test_a_fixed_step_run_records_the_fixed_limit(tmp_path):

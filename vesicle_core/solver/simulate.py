@@ -63,7 +63,6 @@ __all__ = ["run"]
 log = logging.getLogger("vesicle_core.solver.simulate")
 
 
-# --------------------------------------------------------------------------- the run
 def _shape_moments(X, xp):
     c = X - X.mean(axis=0)
     return tuple(float(v) for v in (c * c).mean(axis=0))
@@ -292,7 +291,7 @@ class _Run:
                     dX = self.integ.step(state, X, F, geo, dt_last, rate)
                     self.writer.set_velocity(self.be.asnumpy(dX) / dt_last)
                 return True
-            t_event = self._step_length(X, geo)
+            t_event = self._step_length(X, geo, output_due)
             self._advance(X, F, geo, rate, output_due, t_event)
             if self.stop_signal:  # SIGINT/SIGTERM during the step: keep it, then stop
                 self.checkpoint()
@@ -383,8 +382,8 @@ class _Run:
         t_done = state.t if state.phase == "stretch" else self.t_stretch_end + state.t - state.t_reverse
         self.bar.update(min(1000, int(1000 * t_done / max(T_all, 1e-300))), info)
 
-    def _step_length(self, X, geo) -> float | None:
-        """Set ``dt_step``, the length of the next step; -> the time of the event it leads to (adaptive runs)."""
+    def _step_length(self, X, geo, at_frame: bool = False) -> float | None:
+        """Set ``dt_step``, the next step's length from X (a frame if ``at_frame``); -> its event's time (adaptive)."""
         state, cfg, T = self.state, self.cfg, self.T
         if not self.adaptive:
             self.dt_step = self.dt
@@ -399,8 +398,9 @@ class _Run:
             # 3e-12 tau per step for 700 steps with a folded mesh (tension 1e8) before this bound existed
             self.fail(f"time step collapsed to {dt_want:.3g} tau, {dt_want / self.dt:.2g} x the bending limit "
                       f"{self.dt:.3g} tau (set by the {self.integ.binding_limit} limit)", X)
-        step_limits.record(state, self.integ.limits, self.integ.binding_limit)
         remaining = t_event - state.t
+        # the frame sets the step only when closer than every limit from the frame before, not in the equal pieces
+        step_limits.record(state, self.integ.limits, self.integ.binding_limit, remaining if at_frame else math.inf)
         self.dt_step = remaining / max(1, math.ceil(remaining / dt_want - 1e-6))
         return t_event
 

@@ -6,7 +6,8 @@ tension's stability, the growth limit (``dt_growth`` e-folds of the fastest wrin
 linearised constraint's strain (``dt_strain``) and the noise's displacement per step (``noise_step``). A fixed-step run
 has one limit, ``fixed``. The step actually taken can be a little shorter than the binding limit allows: it lands
 on the next frame, the reversal or the end in equal steps (simulate); the limit recorded is the one that set the
-step count, the argmin of the allowed steps.
+step count, the argmin of the allowed steps, and ``event`` where the time left to that frame, reversal or end is
+shorter than every limit (one step to it).
 
 Each frame records the limit of the last step before it (``step_limit``, a CF flag variable), the step that every
 limit allowed for that step (``dt_limit_<name>``, NaN where a limit did not apply) and how many steps each limit set
@@ -24,7 +25,7 @@ import numpy as np
 __all__ = ["LIMITS", "frame_scalars", "frame_variables", "record", "shares_line"]
 
 #: every limit a step can be set by, in the order of its flag value (0, 1, ...); -1: no step yet
-LIMITS = ("fixed", "bending", "tension", "growth", "flow", "strain", "noise_step")
+LIMITS = ("fixed", "bending", "tension", "growth", "flow", "strain", "noise_step", "event")
 
 _MEANING = {
     "fixed": "the fixed step of a non-adaptive run (dt given, or the explicit and projection schemes)",
@@ -34,6 +35,7 @@ _MEANING = {
     "flow": "the background flow's strain per step, 0.1 dt_growth / chi",
     "strain": "the linearised area constraint's second-order strain per step (dt_strain)",
     "noise_step": "the thermal noise's rms displacement per step (noise_step h)",
+    "event": "the time left to the next frame, the reversal or the end, where that is shorter than every limit",
 }
 
 
@@ -41,9 +43,12 @@ def _empty_counts() -> list:
     return [0] * len(LIMITS)
 
 
-def record(state, limits: dict, binding: str) -> None:
+def record(state, limits: dict, binding: str, until_event: float = math.inf) -> None:
     """Note on ``state`` that the next step is set by ``binding``, with the step every limit allowed (``limits``:
-    name -> dt in tau, only the limits that applied)."""
+    name -> dt in tau, only the limits that applied). ``until_event``: the time left to the next frame, reversal
+    or end (adaptive runs); where it is shorter than every limit, the step is one step to it, set by ``event``."""
+    if until_event < limits[binding]:
+        limits, binding = {**limits, "event": until_event}, "event"
     unknown = set(limits) - set(LIMITS)
     if unknown or binding not in limits:
         raise ValueError(f"unknown step limit(s) {sorted(unknown | ({binding} - set(limits)))}; known: {LIMITS}")
