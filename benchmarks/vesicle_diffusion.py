@@ -3,7 +3,8 @@ translational mobility and against Hasimoto.
 
     python benchmarks/vesicle_diffusion.py TRAJECTORY.nc [TRAJECTORY.nc ...] [--lags 0.01 0.05 0.2] > numbers.md
 
-Each trajectory is a noisy run without flow (chi = 0, kT > 0; docs/history/thermal.md section 7). Measured: D = MSD(lag) /
+Each trajectory is a noisy run without flow (chi = 0, kT > 0; docs/history/thermal.md section 7). Measured: D =
+MSD(lag) /
 (6 lag) of the volume centroid (overlapping windows), error bar from 8 time blocks, pooled over the files.
 
 Predicted, from the run's own discretisation (the first file's first frame, N, L, kernel and coupling):

@@ -1,6 +1,7 @@
 """The package stays readable: no function over 80 lines, no module over 500, and one home for each shared helper.
 
-The limits are the house rules of docs/reference/code.md; a function or module that grows past them is split by role, not
+The limits are the house rules of docs/reference/code.md; a function or module that grows past them is split by
+role, not
 exempted here.
 """
 

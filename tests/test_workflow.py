@@ -194,7 +194,8 @@ def test_config_files_satisfy_schema_and_solver():
     params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"
     run_props = yaml.safe_load(params_schema.read_text())["$defs"]["run"]["properties"]
     assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
-    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "validation.yaml", "convergence.yaml", "sharp.yaml"):
+    for name in ("config.yaml", "tiny.yaml", "paper.yaml", "paper_explicit.yaml", "validation.yaml", "convergence.yaml",
+                 "sharp.yaml"):
         cfg = yaml.safe_load((ROOT / "config" / name).read_text())
         validate(cfg, str(schema))
         for group in cfg["sweep"]:
@@ -221,18 +222,46 @@ def test_config_files_satisfy_schema_and_solver():
 
 # --------------------------------------------------------------------------- paper scale
 def test_paper_config_plans(tmp_path):
+    """config/paper.yaml: the paper's seven cases at 256^3 and 512^3 with edge-h meshes, in the converged
+    discretisation (the elongated two with the shape ALE), each run on CuPy with one GPU."""
     wd = workflow_copy(tmp_path)
     r = snakemake(wd, "-n", "-p", "--configfile", "config/paper.yaml")
     assert r.returncode == 0, r.stderr + r.stdout
     jobs = planned_jobs(r.stdout)
     sims = sorted(j["wildcards"]["case_id"] for j in jobs if j["rule"] == "simulate")
-    assert len(sims) == 7
-    for S in ("227", "553", "1106.5", "2224", "4448"):
-        assert f"D0.116_S{S}_N512_Q26070" in sims
-    assert "D0.997_S237_N512_Q26070" in sims and "D0.997_S947_N512_Q26070" in sims
-    assert "\nbackend: cupy\n" in r.stdout and "\nN: 512\n" in r.stdout
+    expected = [f"D0.116_S{S}_N{N}_Q{V}" for S in ("227", "553", "1106.5", "2224", "4448")
+                for N, V in ((256, 38048), (512, 152192))]
+    expected += [f"D0.997_S{S}_N{N}_Q{V}" for S in ("237", "947") for N, V in ((256, 38048), (512, 152192))]
+    assert sims == sorted(expected)
     sim_blocks = r.stdout.split("rule simulate:")[1:]
-    assert all("gpu=1" in b.split("\n\n")[0] for b in sim_blocks)
+    assert len(sim_blocks) == 14
+    for block in sim_blocks:
+        case = block.split("\n\n")[0]
+        assert "gpu=1" in case
+        for line in ("backend: cupy", "scheme: inextensible", "tension_space: harmonic", "coupling: sharp",
+                     "kernel: bao6", "seed_spectrum: thermal", "dtype: float32", "L: 5.0", "tension_l_max: 78"):
+            assert f"\n{line}\n" in case, (line, case[:200])
+        ale = "shape" if "D0.997" in case.split("wildcards: case_id=")[1][:6] else "quality"
+        assert f"\nmesh_ale: {ale}\n" in case
+
+
+def test_paper_explicit_config_plans(tmp_path):
+    """config/paper_explicit.yaml: the paper's method (explicit penalty, 4-point kernel coupling, mesh-noise seed) at
+    512^3 with 26 070 vertices, one GPU per run."""
+    wd = workflow_copy(tmp_path)
+    r = snakemake(wd, "-n", "-p", "--configfile", "config/paper_explicit.yaml")
+    assert r.returncode == 0, r.stderr + r.stdout
+    sims = sorted(j["wildcards"]["case_id"] for j in planned_jobs(r.stdout) if j["rule"] == "simulate")
+    assert sims == sorted([f"D0.116_S{S}_N512_Q26070" for S in ("227", "553", "1106.5", "2224", "4448")]
+                          + ["D0.997_S237_N512_Q26070", "D0.997_S947_N512_Q26070"])
+    sim_blocks = r.stdout.split("rule simulate:")[1:]
+    for block in sim_blocks:
+        case = block.split("\n\n")[0]
+        assert "gpu=1" in case
+        for line in ("backend: cupy", "scheme: explicit", "coupling: kernel", "kernel: peskin4", "seed_spectrum: mesh",
+                     "mesh_ale: none", "dtype: float64", "N: 512"):
+            assert f"\n{line}\n" in case, (line, case[:200])
+    assert r.stdout.count("\nL: 5.386\n") == 5 and r.stdout.count("\nL: 5.0\n") == 2
 
 
 def test_paper_cpu_config_plans_on_top_of_the_default(tmp_path):

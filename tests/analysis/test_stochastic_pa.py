@@ -69,7 +69,8 @@ def _equilibrium_ratio(n_steps=5000):
 def test_equilibrium_spectrum_is_equipartition_at_the_mean_tension():
     """S = 0, kT/kappa = 0.0405, Delta = 0.04: <|u_lm|^2> = kT / (kappa Delta [l(l+1) + <sigma>]) for every l
     within 10% (the issue's bound; the sampling error is ~1.3% at l = 2) and <sigma> within 5% of the mean-field
-    tension. (l = 2-3 sit 2-5% low, more than the exact fixed-area ensemble's 2%: docs/history/thermal.md, section 6.)"""
+    tension. (l = 2-3 sit 2-5% low, more than the exact fixed-area ensemble's 2%: docs/history/thermal.md, section
+    6.)"""
     eq, ratio, se = _equilibrium_ratio()
     assert np.all(np.abs(ratio - 1) < 0.10), ratio
     assert np.all(se < 0.03), se

@@ -140,7 +140,8 @@ def test_cf_unit_attrs_is_idempotent_and_leaves_cf_units_alone():
 
 
 def test_the_per_frame_scalars_are_those_docs_datasets_lists(files):
-    """docs/reference/datasets.md's table of per-frame scalars names exactly what a trajectory stores along time (one home:
+    """docs/reference/datasets.md's table of per-frame scalars names exactly what a trajectory stores along time
+    (one home:
     TrajectoryWriter.FRAME_VARS, checked against the doc and a written file)."""
     import re
     from pathlib import Path

@@ -201,7 +201,8 @@ def test_bad_step_and_dt():
 
 def test_mobility_divergence_of_a_translation_invariant_pair_is_small():
     """div M at a single marker: the self-mobility's gradient along the grid, ~ the kernel's translation-invariance
-    error per cell, small against M / h (docs/history/thermal.md quantifies it); exact FD check against a larger step."""
+    error per cell, small against M / h (docs/history/thermal.md quantifies it); exact FD check against a larger
+    step."""
     g, _, _, mob = _setup(n=16)
     X = np.array([[0.11, 0.07, -0.05]])
     d1 = mobility_divergence(mob, X, eps=1e-4)
@@ -215,7 +216,8 @@ def test_mobility_divergence_of_a_translation_invariant_pair_is_small():
 def test_a_free_marker_diffuses_with_hasimotos_coefficient(coupling):
     """8 passive markers in a 16^3 box under the noise alone (Euler-Maruyama in the grid frame, no drift term):
     D from the one-step increments and from the MSD at a lag of 20 steps against kT / (6 pi R_h) [1 - 2.837297 x
-    + (4 pi / 3) x^3 - 27.4 x^6], x = R_h / L, with R_h of stokeslet.hydrodynamic_radius (docs/history/thermal.md has the
+    + (4 pi / 3) x^3 - 27.4 x^6], x = R_h / L, with R_h of stokeslet.hydrodynamic_radius (docs/history/thermal.md
+    has the
     longer runs: within 0.4% +- 0.3%)."""
     from vesicle_core.validation.stokeslet import HASIMOTO, hydrodynamic_radius
 
@@ -399,7 +401,8 @@ def test_a_trapped_marker_samples_kT_over_k_with_lm_and_the_euler_bias_without(s
 
 
 def test_noise_on_markers_much_finer_than_the_grid_warns(caplog):
-    """The measured failure (docs/history/thermal.md section 7: area creep, then a CG failure at edge 0.48 h) is warned of
+    """The measured failure (docs/history/thermal.md section 7: area creep, then a CG failure at edge 0.48 h) is
+    warned of
     before the run; an edge of ~h, where the 642-vertex runs held their area, is silent, and so is a run without
     noise on the same fine mesh."""
     from vesicle_core.geometry import mesh as M

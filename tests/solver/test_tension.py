@@ -54,7 +54,8 @@ def test_tension_force_is_marangoni_and_the_checkerboard_is_force_free():
     """-D^T sigma of a linear tension is its gradient times the dual-cell area (the Marangoni force, pulling
     towards higher tension); a tension alternating between up and down triangles exerts no force at all on the
     interior of a regular lattice (each set of alternate hexagon edges sums to zero). That null mode is why the
-    solved tension carries a mesh-scale checkerboard that the vertex motion cannot hold down (docs/history/solver.md)."""
+    solved tension carries a mesh-scale checkerboard that the vertex motion cannot hold down
+    (docs/history/solver.md)."""
     X, faces, sign, interior = _flat_lattice()
     topo = B.Topology(faces, len(X))
     geo = B.geometry(X, topo)

@@ -12,7 +12,8 @@ the mode mobility is A_l / (kappa Delta). Fluctuation-dissipation then fixes the
 
 (s = t/tau; dW complex with E|dW|^2 = ds for m > 0, real for m = 0; u_{l,-m} = (-1)^m conj(u_lm)), whose
 stationary spectrum at fixed sigma is the equilibrium one, ``<|u_lm|^2> = kT / (kappa Delta [l(l+1) + sigma])``
-(:func:`equilibrium_variance`; docs/history/thermal.md, section 4, derives it and relates it to the paper's initial
+(:func:`equilibrium_variance`; docs/explanation/thermal-noise.md, section 4, derives it and relates it to the
+paper's initial
 spectrum). On a grid, ``grid_h``/``kernel``/``coupling`` multiply lam_l and D_l by the same r_l
 (:func:`theory.grid_damping`): the mobility is damped, the equilibrium spectrum is not.
 

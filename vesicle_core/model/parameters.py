@@ -121,7 +121,8 @@ SCHEMES = ("explicit", "projection", "inextensible")
 # checkpoint took 4.8 ms to write (median of 5, two 256^3 runs on the machine).
 CHECKPOINT_WALL_S = 600.0
 _KERNELS = tuple(KERNELS)
-# the sharp coupling's floor, chosen from the resolution table alone (docs/history/solver.md, "Sharpened coupling")
+# the sharp coupling's floor, chosen from the resolution table alone (docs/explanation/resolution.md, "Sharpened
+# coupling")
 SHARP_FLOOR = 0.01
 
 #: parameters of one IBM run (``vesicle run``, ``RunConfig``), in solver units (R, kappa, tau = mu R^3 / kappa)

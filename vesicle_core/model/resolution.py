@@ -21,7 +21,7 @@ RESOLUTION_LENGTH = {"peskin4": 1.04, "roma3": 1.35, "bao6": 0.90}
 
 # The same for the sharp coupling at its default floor (parameters.SHARP_FLOOR) and a mesh edge of ~h: the ratio
 # stays within ~1% of 1 and then falls faster, exp(-(l h / a)^p), (a, p) fitted over the ratios below 0.99 at
-# N = 64-192 (benchmarks/bench_resolution.py, docs/history/solver.md "Sharpened coupling").
+# N = 64-192 (benchmarks/bench_resolution.py, docs/explanation/resolution.md, "Sharpened coupling").
 SHARP_RESOLUTION = {"peskin4": (2.38, 3.88), "roma3": (2.47, 7.20), "bao6": (2.36, 3.29)}
 
 

@@ -174,6 +174,11 @@ def default_lambda(chi: float, scheme: str = "explicit") -> float:
 
 
 def load_config(path) -> RunConfig:
+    """A RunConfig from a YAML file holding a mapping of run parameters (``vesicle run --params``).
+
+    Unknown keys and values out of range raise ConfigError naming the file, the key and the allowed values;
+    duplicate keys are refused rather than silently overwritten.
+    """
     import yaml
 
     from ..io import safe_load_unique

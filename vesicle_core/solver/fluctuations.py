@@ -43,7 +43,8 @@ Step
 ----
 ``euler`` (Euler-Maruyama) gives every step its own white noise z_n. Its stationary distribution is off by O(dt): a
 linear mode relaxing at rate a has the variance (kT / k) / (1 - a dt / 2), so the fast modes of a tense vesicle
-(a ~ 300-450 / tau at sigma = 600 on a 642-vertex mesh at N = 32) are 7-13% too large at dt = 5e-4 tau (docs/history/thermal.md,
+(a ~ 300-450 / tau at sigma = 600 on a 642-vertex mesh at N = 32) are 7-13% too large at dt = 5e-4 tau
+(docs/history/thermal.md,
 section 7). ``lm`` gives step n the mean (z_n + z_{n+1}) / 2 with the same amplitude (Leimkuhler & Matthews, Appl.
 Math. Res. Express 2013; Leimkuhler, Matthews & Stoltz, IMA J. Numer. Anal. 36, 13 (2016)): the sum of the steps'
 noise is the same Brownian path up to the end terms, and for x_{n+1} = (1 - a dt) x_n + sqrt(2 D dt) (z_n + z_{n+1})
@@ -86,8 +87,8 @@ def noise_mesh_warning(edge_over_h):
     if edge_over_h >= NOISE_EDGE_MIN:
         return None
     return (f"kT > 0 with a mean mesh edge of {edge_over_h:.2f} h (< {NOISE_EDGE_MIN} h): at 0.48 h a fixed-tension "
-            "run's area grew by 1.6% in 2.9 tau and its tension solve then failed (docs/history/thermal.md, section 7); use a "
-            "mesh of edge ~h or a finer grid")
+            "run's area grew by 1.6% in 2.9 tau and its tension solve then failed "
+            "(docs/history/thermal.md, section 7); use a mesh of edge ~h or a finer grid")
 
 
 def noise_generator(seed, step, stream=0):

@@ -128,7 +128,8 @@ class ShapeALE(AreaALE):
     size, so these rows leave the area pattern to the area rows (a dilation changes no share). Holding every
     triangle's area leaves the tangential motion almost no freedom (F = 2V - 4 area rows on 2V unknowns), so under a
     shear of the surface the triangles keep their areas and lose their shape: the elongated vesicle's collapse
-    (docs/history/solver.md) came from such a patch, whose stiffest bending mode set a step of 1e-6 tau. The shape rows are
+    (docs/history/solver.md) came from such a patch, whose stiffest bending mode set a step of 1e-6 tau. The shape
+    rows are
     a Gauss-Newton step towards the reference angles (zero at the reference mesh, so no steady drift)."""
 
     def __init__(self, space: HarmonicSpace, h, X0, faces, beta=0.1, **kw):

@@ -181,7 +181,7 @@ def _trajectory_attrs(mesh, cfg: RunConfig, solver: IBMSolver, dt: float, adapti
 
 
 # The sharp coupling resolves what the markers resolve: with a mesh edge of 2h its l_res at N = 128 is 16 against 25
-# with edge h, and l = 2 is off by up to 5.6% at N = 64 (docs/history/solver.md, "Sharpened coupling")
+# with edge h, and l = 2 is off by up to 5.6% at N = 64 (docs/explanation/resolution.md, "Sharpened coupling")
 SHARP_EDGE_MAX = 1.5
 #: an adaptive step shorter than this fraction of the bending limit stops the run (exit 3): a collapsed step
 DT_COLLAPSE = 1e-6
@@ -190,8 +190,8 @@ DT_COLLAPSE = 1e-6
 def _check_mesh_spacing(mesh, cfg: RunConfig) -> None:
     """Warn when the sharp coupling runs on markers much coarser than the grid (edge > SHARP_EDGE_MAX h), or with a
     kernel whose Fourier transform does not vanish at the grid's Nyquist wave number (the 3-point kernel: its resolved
-    rates come out 2-6% fast with edge h, up to 41% with edge 2h; docs/history/solver.md), or noise on markers much finer
-    than the grid (fluctuations.noise_mesh_warning)."""
+    rates come out 2-6% fast with edge h, up to 41% with edge 2h; docs/explanation/resolution.md), or noise on
+    markers much finer than the grid (fluctuations.noise_mesh_warning)."""
     edge = float(mesh.quality()["edge_mean"]) / cfg.h
     if cfg.kT > 0 and (message := noise_mesh_warning(edge)):
         log.warning(message)

@@ -20,7 +20,8 @@ Fixed-tension ensemble (run parameter ``tension_fixed``, ``hold_area=False``): t
 unknown but the prescribed uniform tension, so the total area is free while the l >= 1 projection of the local area
 change is still held. The CG then runs on the l >= 1 coefficients (the operator and the preconditioner restricted by
 the mask). At a fixed area the uniform tension is a Lagrange multiplier, and its mean over a noisy run is not the
-tension the shape modes feel (docs/history/thermal.md, section 7); at a fixed tension the equilibrium spectrum has a known
+tension the shape modes feel (docs/history/thermal.md, section 7); at a fixed tension the equilibrium spectrum has
+a known
 tension to be compared with.
 
 Preconditioner ("diagonal in l", the quasi-spherical vesicle's own operator): on a sphere the area rate per unit

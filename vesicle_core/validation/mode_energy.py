@@ -4,7 +4,8 @@ A quasi-spherical vesicle at tension sigma has, in the continuum (R = 1, real or
 
     E = 1/2 sum_lm (l-1)(l+2) [kappa l(l+1) + sigma] c_lm^2,      <|u_lm|^2> = kT / (kappa Delta [l(l+1) + sigma_bar])
 
-with u_lm = c_lm sqrt((l-1)(l+2)/Delta) the scaled amplitude of eq. (30) (docs/history/thermal.md, section 4). The IBM's
+with u_lm = c_lm sqrt((l-1)(l+2)/Delta) the scaled amplitude of eq. (30) (docs/explanation/thermal-noise.md,
+section 4). The IBM's
 membrane is a triangle mesh: its bending energy (eq. 25) and its area are those of the piecewise-flat surface
 through the vertices, and a mode of wavelength a few edges costs less on it than in the continuum (a P1
 interpolant's Dirichlet energy falls like sinc^2(k h / 2) in 1D). Two functions measure this:

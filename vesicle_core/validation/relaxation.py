@@ -163,7 +163,8 @@ def l_res(ratios: dict, tol=0.05) -> int:
 
 def box_factor_l2(N, n_vertices, L=5.0, **kw) -> float:
     """r(L) / r(inf) of mode l = 2, from boxes L and ~7 R at the same h (r = r_inf - c / L^3): the periodic images slow
-    l = 2 by ~5% at L = 5 R, and modes l >= 3 move by < 0.1% (docs/history/solver.md, "Kernels and resolution")."""
+    l = 2 by ~5% at L = 5 R, and modes l >= 3 move by < 0.1% (docs/explanation/resolution.md, "Kernels and
+    resolution")."""
     h = L / N
     N7 = 2 * round(7.0 / h / 2)
     L7 = N7 * h
