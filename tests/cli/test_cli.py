@@ -92,6 +92,8 @@ def test_set_parses_python_float_notation():
 def test_run_command_reports_where_the_time_went(tmp_path, capsys):
     import xarray as xr
 
+    from vesicle_core.solver.step_limits import LIMITS, shares_line
+
     mesh = tmp_path / "mesh.nc"
     assert main(["mesh", "-o", str(mesh), "--level", "2"]) == 0
     from unit_run import UNIT_RUN
@@ -105,9 +107,14 @@ def test_run_command_reports_where_the_time_went(tmp_path, capsys):
     assert main(args) == 0
     out = capsys.readouterr().out
     with xr.open_dataset(tmp_path / "run" / "trajectory.nc") as ds:
+        ds.load()
         at = ds.attrs
     # the Stokes products are part of the call, and every step makes at least one
     assert 0 < at["stokes_s"] < at["wall_time_s_last_call"]
     assert at["stokes_solves"] >= at["steps"] > 0
     share = round(100 * at["stokes_s"] / at["wall_time_s_last_call"])
     assert f"{at['steps']} steps" in out and f"Stokes products {share}%" in out
+    # the closing line's shares of the steps by the limit that set them: exact counts from the frames
+    counts = {k: int(ds[f"steps_{k}"].sum()) for k in LIMITS}
+    assert sum(counts.values()) == at["steps"]
+    assert shares_line(counts) in out and out.count("steps: ") == 1

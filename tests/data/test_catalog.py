@@ -297,6 +297,10 @@ def test_catalog_columns_of_real_runs(real_runs):
             assert r["tag"] == c["id_kw"].get("tag", "") and r["case_id"] == c["id"] and r["N"] == "16"
             with xr.open_dataset(p) as ds:
                 assert set(ast.literal_eval(r["variables"])) == set(ds.data_vars)  # a list literal
+                if kind == "spectra":  # the values between the frames beside the frame values
+                    for name in ("l_star", "t_star", "l_star_fit", "t_star_fit"):
+                        v = float(ds[name])
+                        assert (r[name] == "") if math.isnan(v) else float(r[name]) == v, name
     assert {by_path[str(c["paths"]["mesh"].relative_to(root))]["n_vertices"] for c in cases.values()} == {"42", "162"}
 
 

@@ -73,7 +73,7 @@ def test_a_collapsing_step_stops_the_run_and_names_its_limit(tmp_path, monkeypat
     m = Mm.make_vesicle("icosphere", level=2, axes=(1.0, 0.8, 1.0))
     cfg = unit_run(chi=50.0, N=16, scheme="inextensible", tension_space="harmonic", stretch=0.3, t_end=0.2,
                     output_every=0.05)
-    with pytest.raises(NumericalInstability, match=r"collapsed .* \(set by the dt_strain limit\)"):
+    with pytest.raises(NumericalInstability, match=r"collapsed .* \(set by the strain limit\)"):
         run(m, cfg, tmp_path / "run", progress=False)
 
 

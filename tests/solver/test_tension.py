@@ -21,7 +21,7 @@ from vesicle_core.solver.tension import (
     vertex_DT,
     vertex_mean,
 )
-from vesicle_core.solver.trajectory import CHECKPOINT, FAILURE, TRAJECTORY
+from vesicle_core.solver.trajectory import CHECKPOINT, FAILURE, TRAJECTORY, TrajectoryWriter
 
 
 @pytest.fixture(scope="module")
@@ -190,6 +190,8 @@ def test_inextensible_resume_is_identical(tmp_path, space, kT, ale, precond, noi
     np.testing.assert_array_equal(res.dt_tau.values, ref.dt_tau.values)  # every frame's own step, resumed or not
     assert res.attrs["dt_bending_last_tau"] == ref.attrs["dt_bending_last_tau"]  # the step-40 re-measurement
     np.testing.assert_array_equal(res.triangle_strain_max.values, ref.triangle_strain_max.values)
+    for name in TrajectoryWriter.LIMIT_VARS:  # the step-limit record: the counts since the checkpoint's frame too
+        np.testing.assert_array_equal(res[name].values, ref[name].values, err_msg=name)
 
 
 def test_thermal_seed_survives_a_resume_after_the_reversal(tmp_path):

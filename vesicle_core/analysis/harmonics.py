@@ -84,6 +84,7 @@ __all__ = [
     "excess_area",
     "t_star",
     "t_star_index",
+    "t_star_between_frames",
     "l_max_nontrivial",
     "characteristic_l",
 ]
@@ -258,6 +259,41 @@ def t_star(time, Delta_2) -> float:
     """t_*: the time >= 0 at which Delta_2 is smallest (Sec. V.A); NaN if no snapshot after the reversal."""
     i = t_star_index(time, Delta_2)
     return float(np.asarray(time, float)[i]) if i >= 0 else float("nan")
+
+
+def t_star_between_frames(time, Delta_2):
+    """t_* between the frames: the vertex of the parabola through the sampled minimum of Delta_2 (over time >= 0)
+    and its two neighbours -> (t_*, frame indices, weights), where ``weights @ y[indices]`` is any series y(t) at t_*
+    by the same parabola's interpolation (quadratic Lagrange weights). NaN, (), () without a finite Delta_2 at
+    time >= 0.
+
+    The frame value (:func:`t_star_index`) jumps by a whole frame spacing h when the frames move against a shallow
+    minimum; the vertex moves with the minimum. Frames may be unequally spaced (divided differences). With the
+    sampled minimum in the middle the parabola's curvature is >= 0 and its vertex lies between the midpoints of that
+    frame's two intervals, so the stencil's weights stay bounded (|w| <= 1.125 on equal spacing). Its error: for
+    Delta_2 = c2 (t - t0)^2 + c3 (t - t0)^3 on frames h apart, with the middle frame at t0 + s, the vertex is off by
+    exactly c3 (3 s^2 - h^2) / (2 c2 + 6 c3 s), at most ~ |c3| h^2 / (2 c2) (zero for a symmetric minimum), where
+    the frame value is off by up to h / 2.
+    At the ends of the record (the minimum at the first frame at or after the reversal, or at the last frame) there
+    is no bracket, so nothing to fit: the frame value, with indices (i,) and weights (1.0,).
+    """
+    i = t_star_index(time, Delta_2)
+    if i < 0:
+        return math.nan, (), ()
+    t = np.asarray(time, float)
+    d = np.asarray(Delta_2, float)
+    ok = np.flatnonzero((t >= 0) & np.isfinite(d))
+    p = int(np.searchsorted(ok, i))
+    if p == 0 or p == ok.size - 1:
+        return float(t[i]), (i,), (1.0,)
+    idx = (int(ok[p - 1]), i, int(ok[p + 1]))
+    (t0, t1, t2), (f0, f1, f2) = t[list(idx)], d[list(idx)]
+    d01, d12 = (f1 - f0) / (t1 - t0), (f2 - f1) / (t2 - t1)
+    curv = (d12 - d01) / (t2 - t0)  # >= 0: f1 is the smallest of the three
+    ts = t1 if curv <= 0 else 0.5 * (t0 + t1) - d01 / (2.0 * curv)
+    w = ((ts - t1) * (ts - t2) / ((t0 - t1) * (t0 - t2)), (ts - t0) * (ts - t2) / ((t1 - t0) * (t1 - t2)),
+         (ts - t0) * (ts - t1) / ((t2 - t0) * (t2 - t1)))
+    return float(ts), idx, tuple(float(x) for x in w)
 
 
 def l_max_nontrivial(u, threshold=NONTRIVIAL_THRESHOLD):

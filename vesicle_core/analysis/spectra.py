@@ -145,6 +145,7 @@ def _at_t_star(sub, faces, time, snap):
     out = {"t_star": float(time[i_star]) if i_star >= 0 else float("nan"),
            "l_star": float(snap["l_star_t"][i_star]) if i_star >= 0 else float("nan"),
            "l_max_nontrivial": int(lmn[i_star]) if i_star >= 0 else -1}
+    out.update(_between_frames(time, D[:, 2], snap["l_star_t"], out))
     lmn_star = out["l_max_nontrivial"]
     out["l_peak"] = H.characteristic_l(D[i_star], lmn_star, method="peak") if lmn_star >= 3 else float("nan")
     out["bias"] = {"defect_amplitude_ratio": math.nan, "icosahedral_amplitude_ratio": math.nan,
@@ -153,6 +154,22 @@ def _at_t_star(sub, faces, time, snap):
         ellipsoid = (snap["center"][i_star], snap["axes"][i_star], snap["rotation"][i_star])
         out["bias"] = MB.mesh_bias(_vertices_at(sub, i_star), faces, ellipsoid, snap["Delta_tilde_l"][i_star])
     return out
+
+
+def _between_frames(time, D2, l_star_t, frame):
+    """t_* between the frames (:func:`harmonics.t_star_between_frames`) and l_* there: l_*(t) of eq. (31) at every
+    frame, interpolated by the same parabola through the three frames. l_*(t), not the spectrum Delta_l(t): eq. (31)
+    is then applied exactly as at a frame, with that frame's l_max_nontrivial, instead of on an interpolated
+    spectrum whose l_max (an integer that jumps between frames) would have to be chosen. Where there is nothing to
+    fit (the minimum at an end of the record) or a neighbour has no l_* (no mode above the threshold), the frame
+    values. -> t_star_fit, l_star_fit, t_star_fit_method."""
+    t_fit, idx, w = H.t_star_between_frames(time, D2)
+    l_fit = float(np.dot(w, l_star_t[list(idx)])) if idx else math.nan
+    if len(idx) == 3 and math.isfinite(l_fit):
+        return {"t_star_fit": t_fit, "l_star_fit": l_fit, "t_star_fit_method": "quadratic"}
+    method = "frame (minimum at an end of the record)" if len(idx) == 1 else "frame (no l_* at a neighbour)"
+    return {"t_star_fit": frame["t_star"], "l_star_fit": frame["l_star"],
+            "t_star_fit_method": method if idx else "none"}
 
 
 def _coords(sub, time, l_max, grid):
@@ -198,6 +215,11 @@ def _spectral_vars(sub, snap, star, threshold):
         "t_star": _var((), star["t_star"], "1",
                        "t_*: time >= 0 at which Delta_2 is smallest (gamma_dot (t - t_reverse))"),
         "l_star": _var((), star["l_star"], "1", "l_* of eq. (31) at t_*"),
+        "t_star_fit": _var((), star["t_star_fit"], "1", "t_* between the frames: vertex of the parabola through the "
+                           "sampled minimum of Delta_2 and its two neighbours (gamma_dot (t - t_reverse))",
+                           comment=f"method: {star['t_star_fit_method']}"),
+        "l_star_fit": _var((), star["l_star_fit"], "1", "l_* of eq. (31) at t_star_fit: l_star_t interpolated by "
+                           "the same parabola", comment=f"method: {star['t_star_fit_method']}"),
         "l_peak": _var((), star["l_peak"], "1", "dominant wrinkle mode argmax_{3<=l<=l_max} Delta_l at t_* (Sec. V.A)"),
         "defect_amplitude_ratio": _var((), bias["defect_amplitude_ratio"], "1",
                                        "rms A_p at mesh defects (valence != 6) / rms A_p, at t_* (mesh bias)"),
@@ -236,7 +258,9 @@ def _spectra_attrs(traj, command, **analysis):
     attrs = netcdf_safe_attrs({k: v for k, v in traj.attrs.items()
                                if k not in ("Conventions", "title", "source", "history")})
     cf = cf_attrs("spherical-harmonic spectra of a vesicle trajectory (Sec. V, eqs. 30-32)", command=command,
-                  **analysis, t_star_definition="argmin of Delta_2 over time >= 0")
+                  **analysis, t_star_definition="argmin of Delta_2 over time >= 0",
+                  t_star_fit_definition="vertex of the parabola through the sampled minimum of Delta_2 and its "
+                  "two neighbours; l_star_fit: l_star_t interpolated there by the same parabola")
     if "history" in traj.attrs:
         cf["history"] = f"{cf['history']}\n{traj.attrs['history']}"
     attrs.update(cf)
@@ -269,6 +293,8 @@ def spectra_from_trajectory(
       A_p_bar (time)                    (1/A) sum A_p^2 A_i [R^2]
       l_max_nontrivial_t, l_star_t (time)  largest l with |u_lm| > threshold, and eq. (31) up to it
       t_star, l_star, l_max_nontrivial  scalars at t_* = argmin_{time >= 0} Delta_2 (NaN / -1 if no such time)
+      t_star_fit, l_star_fit            t_* between the frames (parabola through the sampled minimum and its two
+                                        neighbours) and l_star_t interpolated there; the frame values at an end
       ellipsoid_axes, ellipsoid_center (time, axis), ellipsoid_rotation (time, axis, principal)
       centroid (time, axis), R_eq (time), Delta_mesh (time)   geometry of each snapshot
       [A_p_map (time, theta, phi)]

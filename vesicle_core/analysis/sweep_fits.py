@@ -102,11 +102,23 @@ def _group_fits(groups: dict, confidence: float, min_points: int) -> dict:
     return gdata
 
 
+def _l_star(ds) -> dict:
+    """The l_* and t_* a fit uses: between the frames (spectra's ``l_star_fit``, ``t_star_fit``), which do not jump
+    by a frame when the frame grid moves, where the dataset has them; else the frame values (theory datasets, whose
+    output times are dense, 401 in the workflow, and spectra written before the fit existed). The frame values stay
+    in ``l_star_frame``, ``t_star_frame``."""
+    frame = {"l_star_frame": float(ds["l_star"]), "t_star_frame": float(ds["t_star"])}
+    if "l_star_fit" in ds and "t_star_fit" in ds:
+        return {"l_star": float(ds["l_star_fit"]), "t_star": float(ds["t_star_fit"]), **frame}
+    return {"l_star": frame["l_star_frame"], "t_star": frame["t_star_frame"], **frame}
+
+
 def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     """Fits across a sweep: l_* ~ S^b per (kind, Delta) group and the stage-2 tension decay per case.
 
     ``datasets`` are spectra (simulation) or theory (PA) Datasets with scalars ``l_star`` (eq. 31), ``l_peak``
-    (dominant mode at t_*), ``t_star``, the series ``sigma(time)`` and attrs ``delta`` and ``S``. A group with
+    (dominant mode at t_*), ``t_star`` (and, in spectra, ``l_star_fit``, ``t_star_fit``, which the fits then use:
+    :func:`_l_star`), the series ``sigma(time)`` and attrs ``delta`` and ``S``. A group with
     fewer than ``min_points`` cases or a single S (an ensemble at one flow strength) gets a NaN exponent; a case
     whose tension has no clean stage 2 gets NaN and a ``note``.
     Returns a Dataset with a ``case`` dimension (per-file values), a ``group`` dimension (per-sweep fits: one
@@ -133,10 +145,10 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
         kT = float(ds.attrs.get("kT", 0.0)) if kind == "simulation" else 0.0
         seed = int(ds.attrs.get("noise_seed", 0)) if kT > 0 else -1
         row = {"kind": kind, "delta": delta, "S": S, "N": N, "vertices": nv, "kT": kT, "noise_seed": seed,
-               "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")),
-               "l_star": float(ds["l_star"]), "l_peak": float(ds["l_peak"]) if "l_peak" in ds else math.nan,
-               "t_star": float(ds["t_star"]), "decay_exponent": math.nan, "decay_ci_low": math.nan,
-               "decay_ci_high": math.nan, "t_stage2_start": math.nan, "t_stage2_end": math.nan, "note": ""}
+               "case_id": str(ds.attrs.get("case_id", f"{kind}_D{delta:g}_S{S:g}")), **_l_star(ds),
+               "l_peak": float(ds["l_peak"]) if "l_peak" in ds else math.nan, "decay_exponent": math.nan,
+               "decay_ci_low": math.nan, "decay_ci_high": math.nan, "t_stage2_start": math.nan,
+               "t_stage2_end": math.nan, "note": ""}
         try:
             d = case_decay(ds, kind, confidence)
             row.update(decay_exponent=d.exponent, decay_ci_low=d.ci_low, decay_ci_high=d.ci_high,
@@ -151,10 +163,15 @@ def sweep_fit_dataset(datasets, confidence: float = 0.95, min_points: int = 3):
     gdata = _group_fits(groups, confidence, min_points)
     group = {k: ("group", np.array(v)) for k, v in gdata.items()}
     out = xr.Dataset({**case, **group, **_ensemble_points(groups)})
-    units = {"S": "1", "delta": "1", "l_star": "1", "l_peak": "1", "t_star": "1/gamma_dot"}
+    units = {"S": "1", "delta": "1", "l_star": "1", "l_peak": "1", "t_star": "1/gamma_dot", "l_star_frame": "1",
+             "t_star_frame": "1/gamma_dot"}
     for k, u in units.items():
         out[k].attrs["units"] = u
-    out["l_star"].attrs["long_name"] = "l_* of eq. (31) at t_*"
+    out["l_star"].attrs["long_name"] = ("l_* of eq. (31) at t_*, between the frames where the dataset has it "
+                                        "(spectra's l_star_fit), else at the frame")
+    out["t_star"].attrs["long_name"] = "t_*, between the frames where the dataset has it (spectra's t_star_fit)"
+    out["l_star_frame"].attrs["long_name"] = "l_* of eq. (31) at the frame where Delta_2 is smallest"
+    out["t_star_frame"].attrs["long_name"] = "the frame where Delta_2 is smallest"
     out["l_peak"].attrs["long_name"] = "dominant mode argmax_{l>=3} Delta_l at t_* (Sec. V.A)"
     out["decay_exponent"].attrs["long_name"] = "stage-2 exponent a of |sigma| ~ t^-a"
     out["l_star_exponent"].attrs["long_name"] = "exponent b of l_* (eq. 31) ~ S^b within the group"

@@ -128,11 +128,16 @@ def _cmd_run(a):
 
 
 def _cost_summary(path) -> str:
-    """One line of where this call's wall time went, from the finished trajectory's statistics."""
+    """Where this call's wall time went, from the finished trajectory's statistics, and a second line with the
+    whole run's steps by the limit that set them (step_limits)."""
     import xarray as xr
+
+    from ..solver.step_limits import LIMITS, shares_line
 
     with xr.open_dataset(path) as ds:
         at = ds.attrs
+        # every step is counted in the frame after it; a run resumed from a file of an older version lacks the counts
+        counts = {k: int(ds[f"steps_{k}"].sum()) for k in LIMITS if f"steps_{k}" in ds}
     steps, wall = int(at.get("steps", 0)), float(at.get("wall_time_s_last_call", float("nan")))
     line = f"  {steps} steps, {wall:.1f} s this call ({1e3 * wall / max(steps, 1):.0f} ms per step)"
     if "stokes_solves" in at:
@@ -140,7 +145,8 @@ def _cost_summary(path) -> str:
     parts = {"Stokes products": at.get("stokes_s"), "mesh ALE": at.get("ale_s"), "local preconditioner":
              at.get("cg_precond_s")}
     shares = [f"{k} {100 * float(v) / wall:.0f}%" for k, v in parts.items() if v is not None and wall > 0]
-    return line + (f"; {', '.join(shares)} of the wall time" if shares else "")
+    line += f"; {', '.join(shares)} of the wall time" if shares else ""
+    return line + (f"\n  {shares_line(counts)}" if counts else "")
 
 
 # --------------------------------------------------------------------------- bench

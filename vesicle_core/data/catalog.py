@@ -24,7 +24,9 @@ beside them (esmcat 0.1.0: ``esmcat_version``, ``id``, ``description``, ``attrib
     backend           numpy | cupy (runs)
     tag               the tag of the case id (the sweep group's ``tag``), empty when untagged
     path, created, package_version
-    delta_mesh, l_star, t_star   where the dataset has them
+    delta_mesh, l_star, t_star   where the dataset has them (t_* the frame where Delta_2 is smallest)
+    l_star_fit, t_star_fit       spectra: t_* between the frames and l_* there (spectra.nc's t_star_fit), where the
+                                 file has them
     variables         the file's data variables, as a list literal (the ESM variable column)
 
 Missing values are empty cells; integral numbers are written without ".0" (``S`` 553, not 553.0). ``path`` is
@@ -32,7 +34,8 @@ relative to the directory holding the catalog, so a results tree can be moved as
 
 intake-esm (tested with 2025.12.12): ``intake.open_esm_datastore("results/catalog.json")`` groups the assets by
 kind and case id (keys ``spectra.D0.116_S553_N32_L3``, one file each). Through the Parquet ``catalog_file`` the
-columns keep their types (N, mesh_level, n_vertices int64; Delta, S, chi, delta_mesh, l_star, t_star float64;
+columns keep their types (N, mesh_level, n_vertices int64; Delta, S, chi, delta_mesh, l_star, t_star, l_star_fit,
+t_star_fit float64;
 empty cells null), so search with numbers: ``N=64``, ``S=553``; a variable by pattern:
 ``variables=".*'l_star'.*"``. (A catalog written without pyarrow points at the CSV, which intake-esm reads as
 text: ``N="64"`` there.)
@@ -70,9 +73,9 @@ __all__ = [
 
 COLUMNS = ("kind", "case_id", "Delta", "S", "chi", "N", "mesh_family", "mesh_level", "n_vertices", "scheme", "dtype",
            "kernel", "coupling", "tension_space", "kT", "noise_seed", "backend", "tag", "path", "created",
-           "package_version", "delta_mesh", "l_star", "t_star", "variables")
+           "package_version", "delta_mesh", "l_star", "t_star", "l_star_fit", "t_star_fit", "variables")
 NUMERIC_COLUMNS = ("Delta", "S", "chi", "N", "mesh_level", "n_vertices", "kT", "noise_seed", "delta_mesh", "l_star",
-                   "t_star")
+                   "t_star", "l_star_fit", "t_star_fit")
 INTEGER_COLUMNS = ("N", "mesh_level", "n_vertices", "noise_seed")
 RUN_KINDS = ("trajectory", "spectra", "microscope")
 
@@ -253,7 +256,7 @@ def catalog_row(path, root=None) -> dict:
             variables=repr(sorted(str(v) for v in ds.data_vars)), **run, **noise,
         )
         if kind in ("spectra", "theory"):
-            for name in ("l_star", "t_star"):
+            for name in ("l_star", "t_star", "l_star_fit", "t_star_fit"):
                 if name in ds.variables and ds[name].ndim == 0:
                     row[name] = float(ds[name].values)
     if root is not None:
@@ -314,6 +317,9 @@ def esm_collection(catalog_file: str, description: str | None = None, cid: str =
         "delta_mesh": "excess area of the meshed surface (1)",
         "l_star": "characteristic wrinkle mode l_* of eq. (31) at t_*",
         "t_star": "t_* = argmin Delta_2, gamma_dot (t - t0)",
+        "l_star_fit": "l_* of eq. (31) at t_star_fit (l_*(t) interpolated between the frames)",
+        "t_star_fit": "t_* between the frames: vertex of the parabola through the sampled minimum of Delta_2 and its "
+                      "two neighbours, gamma_dot (t - t0)",
         "variables": "data variables of the file, as a list literal ['A_p_bar', 'Delta_l', ...]",
     }
     return {

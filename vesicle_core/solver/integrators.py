@@ -244,14 +244,16 @@ class Inextensible(Integrator):
                 limits["tension"] = cfg.dt_safety * TENSION_STABILITY[cfg.coupling] * cfg.h / smax
             rate, _ = fastest_growth_rate(self.sigma_mean(state, geo), self.l_grid, cfg.h, cfg.kernel, cfg.coupling)
             if rate > 0:
-                limits["dt_growth"] = cfg.dt_growth / rate
+                limits["growth"] = cfg.dt_growth / rate
         if cfg.chi > 0:
             # the background flow strains the vesicle by dt_growth / 10 per step (1% at the default 0.1)
             limits["flow"] = 0.1 * cfg.dt_growth / cfg.chi
         if state.strain_err > 0 and state.dt_steps:
             # the last step's area change beyond the linearised constraint: it scales as dt^strain_order
-            limits["dt_strain"] = state.dt_steps[-1] * (cfg.dt_strain / state.strain_err) ** (1.0 / self.strain_order)
-        self.binding_limit = min(limits, key=limits.get)  # named in the error when the step collapses
+            limits["strain"] = state.dt_steps[-1] * (cfg.dt_strain / state.strain_err) ** (1.0 / self.strain_order)
+        # named in the error when the step collapses, and recorded per frame (step_limits); the names are
+        # step_limits.LIMITS
+        self.limits, self.binding_limit = limits, min(limits, key=limits.get)
         return limits[self.binding_limit]
 
     def bending_limit(self, state) -> float:

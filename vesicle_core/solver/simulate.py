@@ -45,25 +45,17 @@ from ..model.parameters import CHECKPOINT_WALL_S
 from ..model.run_config import RunConfig
 from ..xp import to_float, to_numpy
 from . import membrane as B
+from . import step_limits
 from .fluctuations import noise_mesh_warning
 from .mobility import IBMSolver
 from .step_size import initial_dt
-from .trajectory import (
-    CHECKPOINT,
-    FAILURE,
-    State,
-    TrajectoryWriter,
-    load_checkpoint,
-    save_checkpoint,
-    write_failure,
-)
+from .trajectory import CHECKPOINT, FAILURE, State, TrajectoryWriter, load_checkpoint, save_checkpoint, write_failure
 
 __all__ = ["run"]
 
 log = logging.getLogger("vesicle_core.solver.simulate")
 
 
-# --------------------------------------------------------------------------- the run
 def _shape_moments(X, xp):
     c = X - X.mean(axis=0)
     return tuple(float(v) for v in to_numpy((c * c).mean(axis=0)))
@@ -77,9 +69,7 @@ class _Progress:
     """
 
     def __init__(self, total, initial, enabled, unit="step"):
-        self.total, self.n = total, initial
-        self.unit = unit
-        self.bar = None
+        self.total, self.n, self.unit, self.bar = total, initial, unit, None
         self.t0 = _time.perf_counter()
         self.n0 = initial
         self.last_pct = -1
@@ -294,7 +284,7 @@ class _Run:
                     dX = self.integ.step(state, X, F, geo, dt_last, rate)
                     self.writer.set_velocity(self.be.asnumpy(dX) / dt_last)
                 return True
-            t_event = self._step_length(X, geo)
+            t_event = self._step_length(X, geo, output_due)
             self._advance(X, F, geo, rate, output_due, t_event)
             if self.stop_signal:  # SIGINT/SIGTERM during the step: keep it, then stop
                 self.checkpoint()
@@ -366,8 +356,9 @@ class _Run:
         sc.update(dt_tau=self.dt_step, cg_iterations=float(state.cg_iterations[-1]) if state.cg_iterations else 0.0)
         q = B.triangle_quality(geo)  # 4 sqrt(3) A / sum l^2, and the triangle strain against the reference mesh
         ref = mem.ref.face_area if state.lipid_area is None else self.xp.asarray(state.lipid_area)
+        strain = self.xp.abs(geo.area / ref - 1).max()
         sc.update(mesh_quality_min=to_float(q.min()), mesh_quality_median=to_float(self.xp.median(q)),
-                  triangle_strain_max=to_float(self.xp.abs(geo.area / ref - 1).max()))
+                  triangle_strain_max=to_float(strain), **step_limits.frame_scalars(state))
         self.writer.append(self.be.asnumpy(X), self.be.asnumpy(sig_l).astype(np.float32), sc)
         state.n_frames += 1
         return sc
@@ -384,23 +375,25 @@ class _Run:
         t_done = state.t if state.phase == "stretch" else self.t_stretch_end + state.t - state.t_reverse
         self.bar.update(min(1000, int(1000 * t_done / max(T_all, 1e-300))), info)
 
-    def _step_length(self, X, geo) -> float | None:
-        """Set ``dt_step``, the length of the next step; -> the time of the event it leads to (adaptive runs)."""
+    def _step_length(self, X, geo, at_frame: bool = False) -> float | None:
+        """Set ``dt_step``, the next step's length from X (a frame if ``at_frame``); -> its event's time (adaptive)."""
+        state, cfg, T = self.state, self.cfg, self.T
         if not self.adaptive:
             self.dt_step = self.dt
+            step_limits.record(state, {"fixed": self.dt}, "fixed")
             return None
-        state, cfg, T = self.state, self.cfg, self.T
         # land exactly on the next frame, the reversal or the end, in equal steps
-        t_event = state.next_output_t
-        t_event = min(t_event, self.t_stretch_end if state.phase == "stretch" else state.t_reverse + cfg.t_end * T)
+        t_event = min(state.next_output_t,
+                      self.t_stretch_end if state.phase == "stretch" else state.t_reverse + cfg.t_end * T)
         dt_want = self.integ.next_dt(state, geo)
         if not dt_want > DT_COLLAPSE * self.dt:
             # a healthy run stays within ~1e-2 of the bending limit; the elongated vesicle at 256^3 crept on at
             # 3e-12 tau per step for 700 steps with a folded mesh (tension 1e8) before this bound existed
-            limit = getattr(self.integ, "binding_limit", None)
             self.fail(f"time step collapsed to {dt_want:.3g} tau, {dt_want / self.dt:.2g} x the bending limit "
-                      f"{self.dt:.3g} tau" + (f" (set by the {limit} limit)" if limit else ""), X)
+                      f"{self.dt:.3g} tau (set by the {self.integ.binding_limit} limit)", X)
         remaining = t_event - state.t
+        # the frame sets the step only when closer than every limit from the frame before, not in the equal pieces
+        step_limits.record(state, self.integ.limits, self.integ.binding_limit, remaining if at_frame else math.inf)
         self.dt_step = remaining / max(1, math.ceil(remaining / dt_want - 1e-6))
         return t_event
 

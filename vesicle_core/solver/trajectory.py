@@ -27,6 +27,7 @@ from ..errors import ConfigError, NumericalInstability
 from ..geometry.mesh import FACE_FIELD_ATTRS, FACE_NODE_ATTRS, NODE_FIELD_ATTRS, ugrid_variables
 from ..io import atomic_to_netcdf
 from ..model.units import SCALE_ATTRS, cf_unit_attrs
+from .step_limits import frame_variables
 
 TRAJECTORY = "trajectory.nc"
 PARTIAL = "trajectory.partial.nc"
@@ -67,6 +68,9 @@ class State:
     lipid_area: object = None  # mesh_ale shape: the lipid area each triangle carries, (F,) on the host (None: A0)
     tension_secant: object = None  # cg_precond secant: the BFGS model of the harmonic tension's rate operator, (K, K)
     tension_noise: object = None  # cg_precond secant, thermal: the last step's modelled noise response, (K,)
+    limit_counts: list = None  # steps set by each of step_limits.LIMITS since the last frame
+    limit_last: int = -1  # the limit that set the last step (index in step_limits.LIMITS; -1: no step yet)
+    limit_dt: list = None  # the step each limit allowed for the last step (tau, NaN: not applied)
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -103,6 +107,11 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
     }
     if state.dt_steps:  # netCDF attributes cannot be empty
         attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
+    attrs["limit_last"] = state.limit_last
+    if state.limit_counts is not None:
+        attrs["limit_counts"] = np.asarray(state.limit_counts, dtype=np.int64)
+    if state.limit_dt is not None:
+        attrs["limit_dt"] = np.asarray(state.limit_dt, dtype=float)
     atomic_to_netcdf(xr.Dataset(data, attrs=attrs), path)
 
 
@@ -132,6 +141,9 @@ def load_checkpoint(path: Path, xp):
         bending_mode=xp.asarray(ds["bending_mode"].values) if "bending_mode" in ds else None,
         lipid_area=ds["lipid_area"].values.copy() if "lipid_area" in ds else None,
         **{k: ds[k].values.copy() for k in ("tension_secant", "tension_noise") if k in ds},
+        limit_last=int(a.get("limit_last", -1)),
+        limit_counts=[int(v) for v in np.atleast_1d(a["limit_counts"])] if "limit_counts" in a else None,
+        limit_dt=[float(v) for v in np.atleast_1d(a["limit_dt"])] if "limit_dt" in a else None,
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
@@ -140,9 +152,10 @@ def load_checkpoint(path: Path, xp):
 class TrajectoryWriter:
     """Appends frames to trajectory.partial.nc (unlimited time dimension); finalize() renames it."""
 
+    LIMIT_VARS = frame_variables()  # which limit set the steps (step_limits): name -> (netCDF type, attributes)
     FRAME_VARS = ("t_tau", "tension", "area", "volume", "area_drift", "volume_drift", "bending_energy",
                   "tension_energy", "flow_sign", "dt_tau", "cg_iterations", "mesh_quality_min",
-                  "mesh_quality_median", "triangle_strain_max")
+                  "mesh_quality_median", "triangle_strain_max", *LIMIT_VARS)
 
     VELOCITY_VARS = ("node_ux", "node_uy", "node_uz")
 
@@ -187,8 +200,9 @@ class TrajectoryWriter:
                      "dt_tau": "tau", "cg_iterations": "1", "mesh_quality_min": "1", "mesh_quality_median": "1",
                      "triangle_strain_max": "1"}
             for name in self.FRAME_VARS:
-                v = nc.createVariable(name, "f8", ("time",))
-                v.setncatts(cf_unit_attrs({"units": units[name]}))
+                kind, attrs = self.LIMIT_VARS.get(name, ("f8", {"units": units.get(name)}))
+                v = nc.createVariable(name, kind, ("time",))
+                v.setncatts(cf_unit_attrs(attrs))
             for k, val in {**self.attrs, **{k: v for k, v in SCALE_ATTRS.items() if k not in self.attrs}}.items():
                 nc.setncattr(k, val)
             nc.setncattr("complete", 0)
