@@ -33,6 +33,7 @@ QUOTES = [
     ("README.md", f"{PC['wall_min']} min"),
     ("docs/explanation/method.md", "The default job's l_* at 128^3 are {}, {} and {}".format(*_f(DJ["l_star"]))),
     ("docs/explanation/method.md", "against {}, {} and {} at 192^3".format(*_f(DJ["l_star_192"]))),
+    ("docs/explanation/method.md", "between the frames {}, {} and {}".format(*_f(DJ["l_star_between_frames"]))),
     ("docs/explanation/method.md",
      "({}, {}, {})".format(*(_pct(a, b) for a, b in zip(DJ["l_star"], DJ["l_star_192"], strict=True)))),
     ("docs/explanation/method.md", "S^{} [{}, {}]".format(*_f([PC["exponent"], *PC["interval"]], 3))),
