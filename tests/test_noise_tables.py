@@ -10,7 +10,6 @@ from vesicle_core.analysis import noise_tables as NT
 from vesicle_core.analysis import stochastic_pa as SP
 from vesicle_core.errors import ConfigError
 
-
 TOP = 10 * (2224.0 / 553.0) ** 0.4
 
 

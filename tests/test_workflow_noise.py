@@ -3,7 +3,6 @@ tiny CI copy; (slow) the tiny copy runs the noise chain end to end."""
 
 import pytest
 import yaml
-
 from test_workflow import ROOT, planned_jobs, snakemake, workflow_copy
 
 

@@ -30,7 +30,7 @@ _SEED = re.compile(r"_n\d+$")
 
 
 def point_id(case_id: str) -> str:
-    """The id of a noisy run's ensemble point: its case id without the seed (``..._kT0.0405_n3`` -> ``..._kT0.0405``)."""
+    """A noisy run's ensemble point: its case id without the seed (``..._kT0.0405_n3`` -> ``..._kT0.0405``)."""
     return _SEED.sub("", str(case_id))
 
 

@@ -16,8 +16,13 @@ def _spa_ids():
         p = {"delta": c["delta"], "S": c["S"], "kT": float(run["kT"])}
         out[f"{base}_continuum"] = {**p, "grid_N": 0, "L": float(run["L"]), "kernel": "", "coupling": ""}
         grid = f"{base}_N{int(run['N'])}_L{float(run['L']):g}_{run['kernel']}_{run['coupling']}"
-        out[grid] = {**p, "grid_N": int(run["N"]), "L": float(run["L"]), "kernel": run["kernel"],
-                     "coupling": run["coupling"]}
+        out[grid] = {
+            **p,
+            "grid_N": int(run["N"]),
+            "L": float(run["L"]),
+            "kernel": run["kernel"],
+            "coupling": run["coupling"],
+        }
     return out
 
 
