@@ -18,6 +18,7 @@ import sys
 from ..errors import NumericalInstability, VesicleError
 from . import analysis as cli_analysis
 from . import microscopy as cli_microscopy
+from . import noise as cli_noise
 from . import post as cli_post
 from . import sim as cli_sim
 
@@ -33,6 +34,7 @@ _ADDERS = [
     cli_sim.add_mesh, cli_sim.add_run, cli_analysis.add_decompose, cli_analysis.add_theory, cli_analysis.add_fit,
     cli_microscopy.add_microscope,
     cli_post.add_report, cli_sim.add_bench, cli_sim.add_params, cli_post.add_figures, cli_post.add_catalog,
+    cli_noise.add_stochastic_pa, cli_noise.add_noise,
 ]
 
 
