@@ -17,7 +17,6 @@ from vesicle_core.analysis.section import main_section, plane
 from vesicle_core.analysis.shape import fit_ellipsoid
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import ylm as Yl
-from vesicle_core.geometry.mesh import icosphere
 from vesicle_core.geometry.surface import resolvable_l_max
 
 UNIT_SPHERE = (np.zeros(3), np.ones(3), np.eye(3))
@@ -25,23 +24,13 @@ EQUATOR = plane()
 MERIDIAN = plane(normal=(0.0, 1.0, 0.0))
 
 
-@pytest.fixture(scope="module")
-def sphere():
-    v, f = icosphere(5)
-    return v, f, np.arccos(v[:, 2]), np.arctan2(v[:, 1], v[:, 0])
-
-
-def _perturbed(sphere, l, m, eps=0.02):
-    v, f, th, ph = sphere
-    y = Yl.ylm(l, th, ph)[l, l + m].real
-    return v * (1.0 + eps * y / np.abs(y).max())[:, None], f
 
 
 @pytest.mark.parametrize("l", [5, 8, 12])
-def test_sectoral_mode_gives_k_l_and_l_crests_on_the_equator(sphere, l):
+def test_sectoral_mode_gives_k_l_and_l_crests_on_the_equator(perturbed, l):
     """Up to k_max = what the mesh resolves: above it sit the facets' own harmonics (without the cut, k_* reads
     5.05 / 8.04 / 12.07 on this mesh)."""
-    v, f = _perturbed(sphere, l, l)
+    v, f = perturbed(l, l)
     s = contour_spectrum(main_section(v, f, EQUATOR), EQUATOR, UNIT_SPHERE, k_max=resolvable_l_max(v, f))
     assert s.k_star == pytest.approx(l, rel=1e-3)
     assert s.k_rms == pytest.approx(l, rel=2e-3)
@@ -49,18 +38,18 @@ def test_sectoral_mode_gives_k_l_and_l_crests_on_the_equator(sphere, l):
     assert s.star_shaped
 
 
-def test_sectoral_mode_with_the_fitted_ellipsoid(sphere):
+def test_sectoral_mode_with_the_fitted_ellipsoid(perturbed):
     """The fitted ellipsoid of R (1 + eps Y_ll), l >= 3, is the sphere: the same answer through the fit."""
-    v, f = _perturbed(sphere, 9, 9)
+    v, f = perturbed(9, 9)
     s = contour_spectrum(main_section(v, f, EQUATOR), EQUATOR, fit_ellipsoid(v), k_max=resolvable_l_max(v, f))
     assert s.k_star == pytest.approx(9, rel=1e-3) and s.up_crossings == 9 and s.crests == 9
 
 
 @pytest.mark.parametrize("l", [6, 9, 12])
-def test_zonal_mode_shows_nothing_on_the_equator_and_l_on_a_meridian(sphere, l):
+def test_zonal_mode_shows_nothing_on_the_equator_and_l_on_a_meridian(perturbed, l):
     """Y_l0 is constant along the equator: a shifted circle, no crests, no crossings, no k_*. A meridian crosses
     its l nodal circles twice each: l up-crossings and about l crests."""
-    v, f = _perturbed(sphere, l, 0)
+    v, f = perturbed(l, 0)
     k_max = resolvable_l_max(v, f)
     eq = contour_spectrum(main_section(v, f, EQUATOR), EQUATOR, UNIT_SPHERE, k_max=k_max)
     assert eq.crests == 0 and eq.up_crossings == 0 and math.isnan(eq.k_star)

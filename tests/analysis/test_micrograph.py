@@ -9,7 +9,6 @@ from vesicle_core.analysis.contour_spectrum import profile_spectrum, radius_on_r
 from vesicle_core.analysis.micrograph import Optics, normal_contour, radial_contour, render
 from vesicle_core.analysis.section import main_section, plane
 from vesicle_core.errors import ConfigError
-from vesicle_core.geometry import ylm as Yl
 from vesicle_core.geometry.mesh import icosphere
 
 R_UM = 18.0  # the elongated vesicles' radius (Sec. V)
@@ -18,15 +17,8 @@ THETA = 2 * np.pi * np.arange(512) / 512
 
 
 @pytest.fixture(scope="module")
-def sphere():
-    v, f = icosphere(5)
-    return v, f, np.arccos(v[:, 2]), np.arctan2(v[:, 1], v[:, 0])
-
-
-def _perturbed(sphere, l, m, eps=0.02):
-    v, f, th, ph = sphere
-    y = Yl.ylm(l, th, ph)[l, l + m].real
-    return v * (1.0 + eps * y / np.abs(y).max())[:, None], f
+def sphere(ylm_sphere):
+    return ylm_sphere
 
 
 def _image_and_section(v, f, where=None):
@@ -53,10 +45,10 @@ def test_bad_optics_are_named():
 
 
 @pytest.mark.parametrize("case", ["sphere", "Y_12,12", "Y_20,20"])
-def test_image_contour_matches_the_exact_section_within_a_tenth_of_a_pixel(sphere, case):
+def test_image_contour_matches_the_exact_section_within_a_tenth_of_a_pixel(sphere, perturbed, case):
     """Both detectors, against the exact section, at the default optics and R = 18 um (measured: 0.061, 0.059,
     0.066 px rms; most of it a 0.05 px inward shift, the sag of the in-focus band of a sphere, z^2 / 2R)."""
-    v, f = (sphere[0], sphere[1]) if case == "sphere" else _perturbed(sphere, *(2 * [int(case[2:4])]))
+    v, f = (sphere[0], sphere[1]) if case == "sphere" else perturbed(*(2 * [int(case[2:4])]))
     img, r_sec = _image_and_section(v, f)
     r_rad = radial_contour(img, (0.0, 0.0), THETA, 0.7, 1.3)
     r_nor, _ = radius_on_rays(normal_contour(img, plane(), UNIT_SPHERE, n_points=512).uv, (0.0, 0.0), THETA)
@@ -72,7 +64,7 @@ def test_a_focus_off_the_equator_images_that_section(sphere, offset):
     assert r.mean() == pytest.approx(math.sqrt(1 - offset**2), abs=0.2 * img.pixel)
 
 
-def test_crests_parallel_to_the_focal_plane_shift_the_outline_without_undulating_it(sphere):
+def test_crests_parallel_to_the_focal_plane_shift_the_outline_without_undulating_it(sphere, perturbed):
     """R (1 + eps Y_12,0): at the equator a crest runs around the vesicle, parallel to the focal plane. The
     outline moves out by most of the crest's height (0.40 px of the section's 0.48 px) and stays a circle: no
     crest, no crossing, wrinkles no larger than on the plain sphere's image. Y_12,12 (crests across the focal
@@ -80,7 +72,7 @@ def test_crests_parallel_to_the_focal_plane_shift_the_outline_without_undulating
     resolution = 0.25 * Optics().pixel_um / R_UM
     img0, _ = _image_and_section(sphere[0], sphere[1])
     base = radial_contour(img0, (0.0, 0.0), THETA, 0.7, 1.3)
-    img, r_sec = _image_and_section(*_perturbed(sphere, 12, 0))
+    img, r_sec = _image_and_section(*perturbed(12, 0))
     r = radial_contour(img, (0.0, 0.0), THETA, 0.7, 1.3)
     shift = (r.mean() - base.mean()) / img.pixel
     assert shift > 0.3 and abs(shift - (r_sec.mean() - 1.0) / img.pixel) < 0.15
@@ -89,7 +81,7 @@ def test_crests_parallel_to_the_focal_plane_shift_the_outline_without_undulating
     assert s.crests == 0 and s.up_crossings == 0 and math.isnan(s.k_star)
     assert s.wrinkle_rms < 1.2 * s0.wrinkle_rms and s.wrinkle_rms < 0.05 * img.pixel
 
-    img, _ = _image_and_section(*_perturbed(sphere, 12, 12))
+    img, _ = _image_and_section(*perturbed(12, 12))
     s = profile_spectrum(THETA, radial_contour(img, (0.0, 0.0), THETA, 0.7, 1.3) - 1.0, resolution=resolution)
     assert s.k_star == pytest.approx(12, rel=0.05) and s.crests == 12 and s.up_crossings == 12
 
