@@ -22,7 +22,8 @@ def _pct(a, b):
 
 
 def _text(page):
-    return " ".join((ROOT / page).read_text().split())  # line breaks do not matter
+    # line breaks do not matter, nor Markdown's escapes (l_\* keeps two l_* of a paragraph from becoming emphasis)
+    return " ".join((ROOT / page).read_text().replace("\\*", "*").split())
 
 
 #: (page, what it must state): the statements that quote a recorded number

@@ -208,7 +208,8 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "str",
         "time integrator (integrators.py). explicit: the paper's area penalty alone; "
         "projection: a global tension multiplier holds the area exactly (10x larger steps); inextensible: a "
-        "tension per triangle solved each step from the local area constraint, adaptive steps (docs/history/solver.md)",
+        "tension solved each step from the local area constraint (per triangle or in spherical harmonics: "
+        "tension_space), adaptive steps (docs/explanation/method.md)",
         choices=SCHEMES,
     ),
     Parameter(
