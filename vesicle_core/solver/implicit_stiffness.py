@@ -66,8 +66,6 @@ from .integrators import Inextensible
 #: the relaxed bending limit may exceed the start's explicit one by at most this factor (modes the Arnoldi start
 #: vector misses, and the unconditionally stable case |mu| -> 0, stay bounded)
 MAX_GAIN = 16.0
-#: stabilise the normal component only (True) or every Cartesian component (False)
-NORMAL_ONLY = True
 
 
 def _cot_and_areas(X, faces):
@@ -165,6 +163,8 @@ class StabilisedInextensible(Inextensible):
     """The inextensible scheme with the mesh-scale stiffness stabilised implicitly along the normals (module
     docstring): (I + dt P) dX = dt U. The bending limit is the measured stability limit of this step."""
 
+    normal_only = True  # P on the normal component (False: on each Cartesian component)
+
     def __init__(self, solver, dt_bending: float, X0=None):
         super().__init__(solver, dt_bending, X0)
         cfg = self.cfg
@@ -172,7 +172,6 @@ class StabilisedInextensible(Inextensible):
         self.l_c = float(cfg.stiffness_l) if cfg.stiffness_l is not None else 0.5 * self.l_grid
         self.alpha = stabilisation_alpha(2.0 / dt_bending, self.l_c)
         self._faces = np.asarray(solver.be.asnumpy(solver.membrane.topo.faces))
-        self.normal_only = NORMAL_ONLY
         self._relaxed = None  # the measured critical step of the stabilised scheme (tau)
         self.relaxations = 0  # the fixed-point iterations spent (each one Arnoldi measurement)
 
