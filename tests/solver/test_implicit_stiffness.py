@@ -13,6 +13,7 @@ from scipy.special import sph_harm_y
 
 from vesicle_core.errors import ConfigError
 from vesicle_core.geometry import mesh as Mm
+from vesicle_core.geometry.surface import vertex_normals
 from vesicle_core.model.run_config import RunConfig
 from vesicle_core.solver import membrane as B
 from vesicle_core.solver.implicit_stiffness import (
@@ -21,7 +22,6 @@ from vesicle_core.solver.implicit_stiffness import (
     cotan_laplacian,
     stabilisation_alpha,
     symbol,
-    vertex_normals,
 )
 from vesicle_core.solver.integrators import Inextensible
 from vesicle_core.solver.mobility import IBMSolver

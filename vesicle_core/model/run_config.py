@@ -52,9 +52,9 @@ class RunConfig:
     tension_space: str = "triangle"
     tension_l_max: int | None = None
     mesh_ale: str = "none"
-    tension_fixed: float | None = None
     stiffness: str = "explicit"
     stiffness_l: float | None = None
+    tension_fixed: float | None = None
     dt_growth: float = 0.1
     dt_strain: float = 2.0e-3
     seed_spectrum: str = "mesh"

@@ -61,6 +61,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..geometry.surface import cross_rows, dot_rows, triangle_areas, vertex_normals
 from .integrators import Inextensible
 
 #: the relaxed bending limit may exceed the start's explicit one by at most this factor (modes the Arnoldi start
@@ -75,9 +76,8 @@ def _cot_and_areas(X, faces):
     for c in range(3):
         a = P[:, (c + 1) % 3] - P[:, c]
         b = P[:, (c + 2) % 3] - P[:, c]
-        cots[:, c] = np.einsum("ij,ij->i", a, b) / np.linalg.norm(np.cross(a, b), axis=1)
-    area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    return cots, area
+        cots[:, c] = dot_rows(a, b) / np.linalg.norm(cross_rows(a, b), axis=1)
+    return cots, triangle_areas(X, faces)
 
 
 def cotan_laplacian(X, faces):
@@ -102,17 +102,6 @@ def cotan_laplacian(X, faces):
     C = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(V, V))
     bary = np.bincount(faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=V)
     return C, np.maximum(m, 0.1 * bary)
-
-
-def vertex_normals(X, faces):
-    """Unit vertex normals (V, 3): the area-weighted mean of the adjacent triangles' outward normals."""
-    X = np.asarray(X, dtype=np.float64)
-    faces = np.asarray(faces)
-    fn = np.cross(X[faces[:, 1]] - X[faces[:, 0]], X[faces[:, 2]] - X[faces[:, 0]])  # 2 A n
-    n = np.zeros_like(X)
-    for c in range(3):
-        np.add.at(n, faces[:, c], fn)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def stabilisation_alpha(lam_stiff: float, l_c: float) -> float:
@@ -142,7 +131,7 @@ class NormalStiffness:
         """P dX (V, 3)."""
         if not self.normal_only:
             return self.scalar(np.asarray(dX, dtype=np.float64))
-        s = np.einsum("ij,ij->i", self.n, dX)
+        s = dot_rows(self.n, dX)
         return self.n * self.scalar(s)[:, None]
 
     def solve(self, dt: float, dX):
@@ -154,7 +143,7 @@ class NormalStiffness:
         dX = np.asarray(dX, dtype=np.float64)
         if not self.normal_only:
             return lu.solve(self.m[:, None] * dX)
-        s = np.einsum("ij,ij->i", self.n, dX)
+        s = dot_rows(self.n, dX)
         s_new = lu.solve(self.m * s)
         return dX + self.n * (s_new - s)[:, None]
 
@@ -236,4 +225,4 @@ def symbol(l, alpha: float = 1.0, R: float = 1.0):
 
 
 __all__ = ["MAX_GAIN", "NormalStiffness", "StabilisedInextensible", "cotan_laplacian", "stabilisation_alpha",
-           "symbol", "vertex_normals"]
+           "symbol"]
