@@ -213,7 +213,7 @@ class StabilisedInextensible(Inextensible):
 
     def stats(self) -> dict:
         out = super().stats()
-        out.update(stiffness_alpha=self.alpha, stiffness_l=self.l_c, stiffness_relaxations=self.relaxations,
+        out.update(stiffness_alpha=self.alpha, stiffness_l_used=self.l_c, stiffness_relaxations=self.relaxations,
                    dt_explicit_start_tau=float(self.dt_explicit))
         return out
 
