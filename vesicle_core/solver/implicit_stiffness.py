@@ -50,6 +50,11 @@ has saturated, so a stabilisation that knows only the mesh and no fluid costs on
 Stokes solves per step unchanged. Its price is first-order accuracy at the wrinkles (dt p(l_*), measured in the
 explanation page) and a stability guarantee only where p >= lam / 2, which is why the step stays measured.
 
+Measured (docs/explanation/implicit-stiffness.md): at 128^3 the stabilised limit relaxed 4.06x, but the tension
+and growth limits bind right behind it (132 -> 123 steps); at 32^3 and 64^3 the stiffest mode is the volume
+penalty's (low l, mostly tangential), which P does not touch. ``NormalStiffness(normal_only=False)`` applies P to
+each Cartesian component instead (at 32^3 with the volume penalty it did not relax the limit either).
+
 Limitations of this prototype: the stabilised normal displacement is not re-projected on the area constraint (the
 next step's tension solve holds the area error it leaves, as it does the linearisation's); noise (kT > 0) and the
 midpoint scheme are refused (the fluctuation-dissipation balance of the mesh-scale modes would change).
