@@ -360,6 +360,11 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "rows only on triangles below 90% of their reference quality (full weight below 60%)",
         choices=("none", "area", "shape", "quality"),
     ),
+    Parameter("stiffness", "explicit", "str", "inextensible: explicit bending, or implicit (a prototype: alpha (-L)^2 "
+              "on the normals solved implicitly; docs/explanation/implicit-stiffness.md)",
+              choices=("explicit", "implicit")),
+    Parameter("stiffness_l", None, "float", "stiffness implicit: l where the stabilisation reaches half the start's "
+              "stiffest rate; null = pi R / h / 2", "", 2.0, 1000.0, nullable=True),
     Parameter("tension_fixed", None, "float", "tension_space harmonic: null = the total area is held; a number = the "
               "uniform (l = 0) tension is fixed at it and the total area is free (a fixed-tension ensemble for "
               "equilibrium checks); l >= 1 still holds the local area", "kappa/R^2", 0.0, 1e7, nullable=True),
@@ -465,16 +470,8 @@ MESH_PARAMETERS: tuple[Parameter, ...] = (
               "mesh.vertices_for_edge), what the sharp coupling needs", "", 12, 20000000, nullable=True),
     Parameter("seed", 0, "int", "seed of the quasi-uniform family", "", 0, 2**31 - 1),
     Parameter("lloyd_steps", 8, "int", "Lloyd relaxation steps (quasi-uniform)", "", 0, 1000),
-    Parameter(
-        "radius",
-        1.0,
-        "float",
-        "equivalent radius, volume 4/3 pi R^3 (the solver's length unit: keep 1)",
-        "R",
-        0.0,
-        None,
-        lo_open=True,
-    ),
+    Parameter("radius", 1.0, "float", "equivalent radius, volume 4/3 pi R^3 (the solver's length unit: keep 1)", "R",
+              0.0, None, lo_open=True),
 )
 
 RUN = {p.name: p for p in RUN_PARAMETERS}

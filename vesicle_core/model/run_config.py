@@ -72,6 +72,8 @@ class RunConfig:
     tension_space: str = "harmonic"
     tension_l_max: int | None = None
     mesh_ale: str = "quality"
+    stiffness: str = "explicit"
+    stiffness_l: float | None = None
     tension_fixed: float | None = None
     dt_growth: float = 0.1
     dt_strain: float = 2.0e-3
@@ -111,6 +113,11 @@ class RunConfig:
         if self.noise_scheme == "midpoint" and self.scheme != "inextensible":
             raise ConfigError(f"noise_scheme 'midpoint' is a variant of scheme 'inextensible' (two tension solves per "
                               f"step); got scheme '{self.scheme}'")
+        if self.stiffness == "implicit" and (self.scheme != "inextensible" or self.kT > 0
+                                             or self.noise_scheme == "midpoint"):
+            raise ConfigError(f"stiffness 'implicit' is a variant of scheme 'inextensible' without noise and without "
+                              f"noise_scheme 'midpoint'; got scheme '{self.scheme}', kT = {self.kT:g}, noise_scheme "
+                              f"'{self.noise_scheme}' (or set stiffness: explicit)")
         if self.kT > 0 and self.seed_spectrum != "mesh":
             raise ConfigError(f"kT = {self.kT:g} with seed_spectrum '{self.seed_spectrum}': the noise keeps the "
                               "membrane thermal throughout, and the PA's thermal seed at the reversal would add a "

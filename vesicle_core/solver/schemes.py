@@ -6,9 +6,14 @@ from __future__ import annotations
 
 def integrator_class(cfg):
     """The class that runs ``cfg`` (a RunConfig): its scheme's, or the inextensible scheme's midpoint variant
-    (``noise_scheme: midpoint``, :mod:`vesicle_core.solver.midpoint`)."""
+    (``noise_scheme: midpoint``, :mod:`vesicle_core.solver.midpoint`), or its implicitly stabilised variant
+    (``stiffness: implicit``, :mod:`vesicle_core.solver.implicit_stiffness`)."""
     from .integrators import SCHEMES
 
+    if cfg.scheme == "inextensible" and cfg.stiffness == "implicit":
+        from .implicit_stiffness import StabilisedInextensible
+
+        return StabilisedInextensible
     if cfg.scheme == "inextensible" and cfg.noise_scheme == "midpoint":
         from .midpoint import MidpointInextensible
 
