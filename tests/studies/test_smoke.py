@@ -26,17 +26,18 @@ def tiny(tmp_path_factory):
     from vesicle_core.analysis.spectra import spectra_from_trajectory
     from vesicle_core.geometry import mesh as Mm
     from vesicle_core.io import atomic_to_netcdf
-    from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.model.run_config import DEFAULTS_BEFORE_RECOMMENDED, RunConfig
     from vesicle_core.solver.simulate import run
 
     d = tmp_path_factory.mktemp("studies")
     m = Mm.make_vesicle("quasiuniform", n_vertices=162, axes=(1.0, 0.8, 1.0))  # the family the thermal runs use
     Mm.save(m, d / "mesh.nc")
-    base = {"N": 16, "scheme": "inextensible", "tension_space": "harmonic"}
-    det = run(m, RunConfig(chi=50.0, stretch=0.05, t_end=0.05, output_every=0.025, **base), d / "det",
+    # the studies' inputs in the discretisation they were written for (the defaults before the recommended method)
+    base = {**DEFAULTS_BEFORE_RECOMMENDED, "N": 16, "scheme": "inextensible", "tension_space": "harmonic"}
+    det = run(m, RunConfig(**{**base, "chi": 50.0, "stretch": 0.05, "t_end": 0.05, "output_every": 0.025}), d / "det",
               progress=False)
-    hot = run(m, RunConfig(chi=0.0, stretch=0.0, t_end=0.01, output_every=0.001, kT=0.0405, noise_seed=1,
-                           tension_fixed=10.0, **base), d / "hot", progress=False)
+    hot = run(m, RunConfig(**{**base, "chi": 0.0, "stretch": 0.0, "t_end": 0.01, "output_every": 0.001, "kT": 0.0405,
+                              "noise_seed": 1, "tension_fixed": 10.0}), d / "hot", progress=False)
     with xr.open_dataset(det) as traj:
         atomic_to_netcdf(spectra_from_trajectory(traj.load(), l_max=6), d / "det_spectra.nc")
     return {"mesh": d / "mesh.nc", "det": det, "hot": hot, "spectra": d / "det_spectra.nc", "dir": d}
