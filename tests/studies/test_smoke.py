@@ -55,6 +55,7 @@ CASES = {
                             "0.05", "--out", "{dir}/stationary"], "| 0.116 | "),
     "stochastic_pa": (["--seeds", "2", "--steps", "50", "--equilibrium-seeds", "2", "--equilibrium-steps", "100",
                        "--draws", "20000"], "exact fixed-area ensemble"),
+    "step_accuracy": (["{spectra}", "{spectra}", "--l", "3", "4", "--t-max", "0.05"], "| 0.00% | 0.00% |"),
     "tension_modes": (["{det}", "--time", "0.025"], "[10, 100)"),
     "tension_spectrum": (["{det}", "--l-max", "4"], "cb_raw cb_low"),
     "thermal_diffusion": (["--N", "16", "--steps", "20", "--markers", "2", "--lag", "5"], "| sharp | 0."),
