@@ -213,6 +213,30 @@ def test_under_a_stiff_tension_the_stabilised_step_is_stable_where_forward_euler
     assert E_imp[-1] < E_imp[0]
 
 
+def test_the_measured_limit_replaces_the_tension_formula():
+    """With a tension in the state, next_dt measures the stabilised step with the tension frozen and drops the
+    tension formula's limit (the measured one includes the tension's stiffness); stiffness_tension false keeps the
+    formula. The measured limit is > 1.2x the explicit limit of bending and tension together (J_s)."""
+    sigma0 = 1000.0
+    for with_tension in (True, False):
+        s, m = _setup("implicit", tension_fixed=sigma0, stiffness_tension=with_tension)
+        X = s.xp.asarray(_noisy_start(m))
+        sigma = np.full(len(m.faces), sigma0)
+        integ = integrator_class(s.cfg)(s, 0.006, X0=m.vertices)
+        state = State(X=X, step=1)
+        state.sigma = s.xp.asarray(sigma)
+        F, geo = s.forces(X)
+        integ.next_dt(state, geo)
+        assert ("tension" in integ.limits) is not with_tension, integ.limits
+        if with_tension:
+            assert integ.P.beta > 0
+            lam, _, _ = arnoldi(stiffness_product(s, X, sigma), np.random.default_rng(0).standard_normal(X.shape),
+                                max_iter=40, min_iter=5)
+            assert integ.bending_limit(state) > 1.2 * 2.0 / lam, (integ.bending_limit(state), 2.0 / lam)
+        else:
+            assert integ.P.beta == 0.0
+
+
 def _anisotropy(X):
     """G_zz - G_yy of the vertices' second moments: the (1, 0.9, 1.1) ellipsoid's low-l (l = 2) shape mode."""
     X = X - X.mean(0)
