@@ -22,21 +22,23 @@ from vesicle_core.solver.implicit_stiffness import (
     cotan_laplacian,
     stabilisation_alpha,
     symbol,
+    tension_beta,
 )
 from vesicle_core.solver.integrators import Inextensible
 from vesicle_core.solver.mobility import IBMSolver
 from vesicle_core.solver.schemes import integrator_class
-from vesicle_core.solver.step_size import stability_dt
+from vesicle_core.solver.step_size import arnoldi, stability_dt, stiffness_product
 from vesicle_core.solver.trajectory import State
 
 
-def _rayleigh(level, l, m=1):
-    """<Y, A Y>_M / <Y, Y>_M for A = (M^{-1} C)^2 and Y = Re Y_lm on an icosphere, over the symbol (l(l+1))^2."""
+def _rayleigh(level, l, m=1, alpha=1.0, beta=0.0):
+    """<Y, A Y>_M / <Y, Y>_M for A = alpha (M^{-1} C)^2 + beta M^{-1} C and Y = Re Y_lm on an icosphere, over the
+    symbol alpha (l(l+1))^2 + beta l(l+1)."""
     X, F = Mm.icosphere(level)
-    P = NormalStiffness(X, F, 1.0)
+    P = NormalStiffness(X, F, alpha, beta=beta)
     th, ph = np.arccos(np.clip(X[:, 2], -1.0, 1.0)), np.arctan2(X[:, 1], X[:, 0])
     y = sph_harm_y(l, m, th, ph).real
-    return float(y @ (P.m * P.scalar(y)) / (y @ (P.m * y))) / float(symbol(l))
+    return float(y @ (P.m * P.scalar(y)) / (y @ (P.m * y))) / float(symbol(l, alpha, beta=beta))
 
 
 def test_the_operator_has_the_symbol_of_the_squared_laplacian_on_a_sphere():
@@ -48,6 +50,22 @@ def test_the_operator_has_the_symbol_of_the_squared_laplacian_on_a_sphere():
         assert abs(r5 - 1.0) < tol, (l, r5)
         r4 = _rayleigh(4, l)
         assert 3.0 < abs(r4 - 1.0) / abs(r5 - 1.0) < 5.0, (l, r4, r5)
+
+
+def test_the_tension_term_adds_the_symbol_of_the_laplacian():
+    """alpha (-L)^2 + beta (-L) against alpha (l(l+1))^2 + beta l(l+1), with beta chosen so that the two terms are
+    equal at l = 8 (the beta term dominates below, the alpha term above): within 0.2% at l = 2 and 1% at l = 8 on
+    10242 vertices, second order. The beta term alone (alpha = 0) is the cotan Laplacian's own symbol, l(l+1). A
+    beta term entering with (M^{-1} C)^2's scaling would miss by 5.6x at l = 2, a missing one by 2x at l = 8."""
+    beta = 72.0**2 / 72.0  # alpha (l(l+1))^2 = beta l(l+1) at l = 8 for alpha = 1
+    for l, tol in ((2, 0.002), (4, 0.004), (8, 0.012)):
+        r5 = _rayleigh(5, l, beta=beta)
+        assert abs(r5 - 1.0) < tol, (l, r5)
+        r4 = _rayleigh(4, l, beta=beta)
+        assert 3.0 < abs(r4 - 1.0) / abs(r5 - 1.0) < 5.0, (l, r4, r5)
+        assert abs(_rayleigh(5, l, alpha=0.0, beta=1.0) - 1.0) < tol, l
+    assert abs(tension_beta(1000.0, 0.1, "sharp", 10.0) * 110.0 - 1000.0 / (3.3 * 0.1)) < 1e-9
+    assert tension_beta(-50.0, 0.1, "sharp", 10.0) == 0.0
 
 
 def test_cotan_laplacian_annihilates_constants_and_normals_are_radial():
@@ -63,12 +81,15 @@ def test_the_solve_inverts_I_plus_dt_P_along_the_normals_only():
     P = NormalStiffness(X, F, stabilisation_alpha(1e3, 10.0))
     dX = np.random.default_rng(0).standard_normal(X.shape)
     dt = 0.01
-    out = P.solve(dt, dX)
+    out = P.solve(dt, dX, rtol=1e-14)
     np.testing.assert_allclose(out + dt * P.apply(out), dX, atol=1e-10)
     t = dX - P.n * np.einsum("ij,ij->i", P.n, dX)[:, None]  # tangential parts untouched
     np.testing.assert_allclose(out - P.n * np.einsum("ij,ij->i", P.n, out)[:, None], t, atol=1e-12)
     full = NormalStiffness(X, F, P.alpha, normal_only=False)
-    np.testing.assert_allclose(full.solve(dt, dX) + dt * full.apply(full.solve(dt, dX)), dX, atol=1e-10)
+    np.testing.assert_allclose(full.solve(dt, dX) + dt * full.apply(full.solve(dt, dX)), dX, atol=1e-8)
+    both = NormalStiffness(X, F, P.alpha, beta=50.0)
+    out = both.solve(dt, dX, rtol=1e-14)
+    np.testing.assert_allclose(out + dt * both.apply(out), dX, atol=1e-10)
     assert abs(stabilisation_alpha(1e3, 10.0) * (10 * 11) ** 2 - 500.0) < 1e-9
 
 
@@ -87,21 +108,31 @@ def explicit_limit():
     return dt_crit, m
 
 
-def _relax(stiffness, dt, n, X0, **extra):
-    """n steps of length dt from X0 -> (bending energies after each step, final X); None where the step failed."""
+def _relax(stiffness, dt, n, X0, measure=False, **extra):
+    """n steps of length dt from X0 -> (energies after each step, final X); None where the step failed. The energy
+    is the bending energy, plus tension_fixed x area with a fixed tension (the free energy the flow lowers).
+    ``measure``: the run's next_dt before each step (its dt ignored), so the stabilised scheme sizes P on the
+    tension it meets, as a run does."""
     s, m = _setup(stiffness, **extra)
     integ = integrator_class(s.cfg)(s, _relax.dt_crit, X0=m.vertices)
     state = State(X=s.xp.asarray(X0), step=0)
-    E = [B.bending_energy(state.X, s.membrane.topo)]
+    sigma0 = extra.get("tension_fixed") or 0.0
+
+    def energy(X):
+        return B.bending_energy(X, s.membrane.topo) + sigma0 * float(B.geometry(X, s.membrane.topo).area.sum())
+
+    E = [energy(state.X)]
     with np.errstate(all="ignore"):
         for _ in range(n):
             F, geo = s.forces(state.X)
             try:
+                if measure:
+                    integ.next_dt(state, geo)
                 state.X = state.X + integ.step(state, state.X, F, geo, dt, 0.0)
             except Exception:  # the explicit step's blow-up ends in the tension solve or the spreading
                 return None, None
             state.step += 1
-            E.append(B.bending_energy(state.X, s.membrane.topo))
+            E.append(energy(state.X))
     return np.array(E), state.X
 
 
@@ -152,6 +183,58 @@ def test_the_measured_limit_of_the_stabilised_step_exceeds_the_explicit_one(expl
     gain = integ.bending_limit(state) / dt_crit
     assert 1.2 < gain < 16.0, gain
     assert state.dt_bending == integ.bending_limit(state) and integ.relaxations >= 2
+
+
+def test_under_a_stiff_tension_the_stabilised_step_is_stable_where_forward_euler_blows_up(explicit_limit):
+    """A fixed uniform tension of 300 kappa/R^2 (tension_fixed), whose linearised stiffness at frozen sigma
+    (step_size.stiffness_product(sigma=...)) is >= 5x the bending one's on this mesh: at 1.5x the explicit critical
+    step of bending and tension together, forward Euler's free energy E_b + sigma A grows (or the run fails)
+    within 30 steps; the stabilised step with the beta (-L) term sized from the tension lowers it at every step
+    after the first (the first is taken before the tension it will meet is known, as in a run). With
+    stiffness_tension false (alpha (-L)^2 only, sized for bending) the same step is not stable: the beta term is
+    what carries it."""
+    dt_b, m = explicit_limit
+    sigma0 = 1000.0
+    s, _ = _setup("explicit", tension_fixed=sigma0)
+    X0 = _noisy_start(m)
+    X = s.xp.asarray(X0)
+    v0 = np.random.default_rng(0).standard_normal(X.shape)
+    lam, _, _ = arnoldi(stiffness_product(s, X, np.full(len(m.faces), sigma0)), v0, max_iter=40, min_iter=5)
+    assert lam > 5.0 * 2.0 / dt_b, (lam, 2.0 / dt_b)
+    dt = 1.5 * 2.0 / lam
+    _relax.dt_crit = dt_b
+    E_exp, _ = _relax("explicit", dt, 30, X0, tension_fixed=sigma0)
+    assert E_exp is None or E_exp[-1] > E_exp[0], E_exp
+    E_alpha, _ = _relax("implicit", dt, 30, X0, measure=True, tension_fixed=sigma0, stiffness_tension=False)
+    assert E_alpha is None or E_alpha[-1] > E_alpha[0], E_alpha
+    E_imp, _ = _relax("implicit", dt, 30, X0, measure=True, tension_fixed=sigma0)
+    assert E_imp is not None
+    assert np.all(np.diff(E_imp[1:]) < 0), np.diff(E_imp)
+    assert E_imp[-1] < E_imp[0]
+
+
+def test_the_measured_limit_replaces_the_tension_formula():
+    """With a tension in the state, next_dt measures the stabilised step with the tension frozen and drops the
+    tension formula's limit (the measured one includes the tension's stiffness); stiffness_tension false keeps the
+    formula. The measured limit is > 1.2x the explicit limit of bending and tension together (J_s)."""
+    sigma0 = 1000.0
+    for with_tension in (True, False):
+        s, m = _setup("implicit", tension_fixed=sigma0, stiffness_tension=with_tension)
+        X = s.xp.asarray(_noisy_start(m))
+        sigma = np.full(len(m.faces), sigma0)
+        integ = integrator_class(s.cfg)(s, 0.006, X0=m.vertices)
+        state = State(X=X, step=1)
+        state.sigma = s.xp.asarray(sigma)
+        F, geo = s.forces(X)
+        integ.next_dt(state, geo)
+        assert ("tension" in integ.limits) is not with_tension, integ.limits
+        if with_tension:
+            assert integ.P.beta > 0
+            lam, _, _ = arnoldi(stiffness_product(s, X, sigma), np.random.default_rng(0).standard_normal(X.shape),
+                                max_iter=40, min_iter=5)
+            assert integ.bending_limit(state) > 1.2 * 2.0 / lam, (integ.bending_limit(state), 2.0 / lam)
+        else:
+            assert integ.P.beta == 0.0
 
 
 def _anisotropy(X):

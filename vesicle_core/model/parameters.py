@@ -360,11 +360,15 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         "rows only on triangles below 90% of their reference quality (full weight below 60%)",
         choices=("none", "area", "shape", "quality"),
     ),
-    Parameter("stiffness", "explicit", "str", "inextensible: explicit bending, or implicit (a prototype: alpha (-L)^2 "
-              "on the normals solved implicitly; docs/explanation/implicit-stiffness.md)",
+    Parameter("stiffness", "explicit", "str", "inextensible: explicit bending, or implicit (alpha (-L)^2 + beta "
+              "(-L) on the normals solved implicitly, the step the measured stability limit of the step taken; "
+              "docs/explanation/implicit-stiffness.md)",
               choices=("explicit", "implicit")),
     Parameter("stiffness_l", None, "float", "stiffness implicit: l where the stabilisation reaches half the start's "
               "stiffest rate; null = pi R / h / 2", "", 2.0, 1000.0, nullable=True),
+    Parameter("stiffness_tension", True, "bool", "stiffness implicit: also stabilise the tension's stiffness (beta "
+              "(-L) on the normals, sized from the largest positive tension) and drop the tension formula's limit for "
+              "the measured one; false: bending only (alpha (-L)^2), the tension formula's limit kept"),
     Parameter("tension_fixed", None, "float", "tension_space harmonic: null = the total area is held; a number = the "
               "uniform (l = 0) tension is fixed at it and the total area is free (a fixed-tension ensemble for "
               "equilibrium checks); l >= 1 still holds the local area", "kappa/R^2", 0.0, 1e7, nullable=True),

@@ -74,6 +74,7 @@ class RunConfig:
     mesh_ale: str = "quality"
     stiffness: str = "explicit"
     stiffness_l: float | None = None
+    stiffness_tension: bool = True
     tension_fixed: float | None = None
     dt_growth: float = 0.1
     dt_strain: float = 2.0e-3

@@ -19,6 +19,7 @@ from ..model.run_config import RunConfig
 from ..xp import array_module, to_float
 from .membrane import volume, volume_gradient
 from .mobility import IBMSolver
+from .tension import face_DT
 
 __all__ = ["arnoldi", "formula_dt", "initial_dt", "stability_dt", "stiffest_mode", "stiffness_product"]
 
@@ -105,20 +106,29 @@ def arnoldi(apply, v, max_iter=40, rtol=1e-3, min_iter=3):
     return lam, vec / to_float(xp.linalg.norm(vec)), j + 1
 
 
-def stiffness_product(solver: IBMSolver, X):
+def stiffness_product(solver: IBMSolver, X, sigma=None):
     """v -> M(X) dF/dX v (float64) at the shape X, as stiffest_mode uses it: the force's derivative a centred
-    difference in float64, the volume penalty's p Hess(V) v added back, one Stokes solve per product."""
+    difference in float64, the volume penalty's p Hess(V) v added back, one Stokes solve per product.
+
+    ``sigma`` (F,): a per-triangle tension held frozen (the inextensible scheme's, solved at X), whose force
+    -D(X)^T sigma is differenced with the rest: its derivative -sum_t sigma_t Hess(A_t) v is the tension's
+    linearised stiffness at fixed sigma, the part of the step the tension limit (integrators.TENSION_STABILITY)
+    stands for. The tension's own response to v (the constraint's re-solve) is left out."""
     xp = solver.xp
     scale = 1e-7 * to_float(xp.abs(X).max())
     mem = solver.membrane
     pressure = mem.K_volume * (volume(X, mem.topo) - mem.ref.volume) / mem.ref.volume
+    frozen = None if sigma is None else xp.asarray(sigma, dtype=xp.float64)
     # the forces are spread at X itself, not at the displaced shapes: one stencil for every product, valid until
     # the coupler is prepared at other points (the integrator's step does that after each measurement)
     solver.coupler.prepare(X)
 
     def apply(v):
         w = scale * v
-        dF = solver.forces(X + w)[0] - solver.forces(X - w)[0]
+        (Fp, gp), (Fm, gm) = solver.forces(X + w), solver.forces(X - w)
+        dF = Fp - Fm
+        if frozen is not None:
+            dF -= face_DT(frozen, gp, mem.topo) - face_DT(frozen, gm, mem.topo)
         if pressure:
             dF += pressure * (volume_gradient(X + w, mem.topo) - volume_gradient(X - w, mem.topo))
         dF /= 2 * scale
