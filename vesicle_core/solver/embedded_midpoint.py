@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
+from ..geometry.surface import vertex_normals
 from ..model.flow import background_velocity
 from . import step_limits
 from .midpoint import MidpointInextensible
@@ -40,13 +41,6 @@ from .step_control import StepController, WrinkleNorm
 
 #: the accuracy limits the controller replaces
 REPLACED = ("growth", "flow")
-
-
-def vertex_normals(geo, topo, xp):
-    """Unit vertex normals (V, 3): the area-weighted mean of the adjacent triangles' normals."""
-    nA = geo.normal * geo.area  # (3, F)
-    n = topo.scatter(xp.broadcast_to(nA[:, None, :], (3, 3, nA.shape[1])))
-    return (n / xp.linalg.norm(n, axis=0)).T
 
 
 class EmbeddedMidpoint(MidpointInextensible):
@@ -57,7 +51,7 @@ class EmbeddedMidpoint(MidpointInextensible):
         be, mem = solver.be, solver.membrane
         if X0 is None:
             raise ConfigError("step_control 'error' needs the reference mesh's vertices (X0) for its band split")
-        faces = be.asnumpy(mem.topo.faces)
+        faces = self._faces = be.asnumpy(mem.topo.faces)
         # each vertex's third of its triangles' reference areas: the weights of the rms
         weights = np.bincount(faces.ravel(), weights=np.repeat(be.asnumpy(mem.ref.face_area) / 3.0, 3),
                               minlength=mem.topo.n_vertices)
@@ -82,7 +76,7 @@ class EmbeddedMidpoint(MidpointInextensible):
         return self._dt_taken if self._dt_taken is not None else dt
 
     def step(self, state, X, F, geo, dt, rate):
-        cfg, xp, mem = self.cfg, self.solver.xp, self.solver.membrane
+        cfg, mem = self.cfg, self.solver.membrane
         first = state.sigma is None  # no tension yet: the zeros _init_sigma puts there are not one
         self._init_sigma(state, geo)
         ref = self.held_area(state)
@@ -108,9 +102,9 @@ class EmbeddedMidpoint(MidpointInextensible):
                                              sigma0 if c is None else c, None, getattr(self.tension, "noise_c", None),
                                              coefficients=True)
             iterations += self.tension.last.iterations
-            if normals is None:
-                normals = self.solver.be.asnumpy(vertex_normals(geo, mem.topo, xp))
             be = self.solver.be
+            if normals is None:
+                normals = vertex_normals(be.asnumpy(X), self._faces)
             self.estimate = (U - U0) * dt  # the Euler step's local error, to leading order
             err = self.norm(be.asnumpy(X), normals, be.asnumpy(self.estimate))
             if err <= 1.0 or not self.adaptive:

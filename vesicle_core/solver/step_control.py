@@ -37,6 +37,8 @@ import math
 
 import numpy as np
 
+from ..geometry.surface import dot_rows
+
 # scipy.integrate.RK23's constants (scipy/integrate/_ivp/rk.py)
 SAFETY = 0.9
 MIN_FACTOR = 0.2
@@ -101,7 +103,7 @@ class WrinkleNorm:
 
     def __call__(self, X, normals, e) -> float:
         """err of the displacement error estimate ``e`` (V, 3) of a step from X (normals (V, 3), unit)."""
-        en = np.einsum("ij,ij->i", np.asarray(normals, dtype=float), np.asarray(e, dtype=float))
+        en = dot_rows(np.asarray(normals, dtype=float), np.asarray(e, dtype=float))
         e_low, e_high = self.bands(en)
         D, W = self.amplitudes(X)
         err = max(e_high / (self.atol + self.rtol * W), e_low / (self.atol + self.rtol * D))
