@@ -86,7 +86,7 @@ class RunConfig:
     noise_scheme: str = "lm"
     noise_drift_every: int = 1
     step_control: str = "limits"
-    step_tol: float = 0.05
+    step_tol: float = 0.025
     store_velocity: bool = False
 
     def __post_init__(self):
