@@ -445,6 +445,14 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
               "(two constrained solves each), applied with that weight; 10 heats the shortest modes by 3-15% at "
               "N = 32; 0: no drift (paired runs at N = 32, either coupling: spectrum and centroid D within 1.1%; 3x "
               "fewer solves; docs/history/thermal.md)", "", 0, 1000),
+    Parameter("step_control", "limits", "str", "inextensible, adaptive dt, no noise: limits (forward Euler, the step "
+              "the smallest of the stability and accuracy limits) or error (explicit midpoint with an embedded Euler "
+              "error estimate: the step follows step_tol on the wrinkle amplitudes in place of the growth and flow "
+              "limits; embedded_midpoint.py, docs/explanation/step-control.md)", choices=("limits", "error")),
+    Parameter("step_tol", 0.025, "float", "step_control error: relative tolerance on the wrinkle amplitudes (and "
+              "the shape's deformation) of the first-order error estimate per step; a mode growing at rate r then "
+              "takes r dt ~ sqrt(2 step_tol) per step; 0.025: halving it moved l_* by 0.13% at 32^3 "
+              "(docs/explanation/step-control.md)", "", 0.0, 1.0, lo_open=True),
     Parameter(
         "store_velocity", False, "bool", "write the membrane velocity of every frame (node_ux, node_uy, node_uz)"
     ),

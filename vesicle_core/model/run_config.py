@@ -86,6 +86,8 @@ class RunConfig:
     noise_step: float = 0.04
     noise_scheme: str = "lm"
     noise_drift_every: int = 1
+    step_control: str = "limits"
+    step_tol: float = 0.025
     store_velocity: bool = False
 
     def __post_init__(self):
@@ -119,6 +121,12 @@ class RunConfig:
             raise ConfigError(f"stiffness 'implicit' is a variant of scheme 'inextensible' without noise and without "
                               f"noise_scheme 'midpoint'; got scheme '{self.scheme}', kT = {self.kT:g}, noise_scheme "
                               f"'{self.noise_scheme}' (or set stiffness: explicit)")
+        if self.step_control == "error" and (self.scheme != "inextensible" or self.kT > 0
+                                             or self.stiffness != "explicit" or isinstance(self.dt, (int, float))):
+            raise ConfigError(f"step_control 'error' is a variant of scheme 'inextensible' with an adaptive dt, "
+                              f"without noise and with stiffness 'explicit'; got scheme '{self.scheme}', "
+                              f"dt = {self.dt!r}, kT = {self.kT:g}, stiffness '{self.stiffness}' "
+                              "(or set step_control: limits)")
         if self.kT > 0 and self.seed_spectrum != "mesh":
             raise ConfigError(f"kT = {self.kT:g} with seed_spectrum '{self.seed_spectrum}': the noise keeps the "
                               "membrane thermal throughout, and the PA's thermal seed at the reversal would add a "

@@ -52,6 +52,11 @@ class Integrator(abc.ABC):
     def next_dt(self, state, geo) -> float:
         return self.dt
 
+    def taken(self, dt: float) -> float:
+        """The length of the step just taken by ``step`` asked for ``dt``: dt, unless the scheme shortened it (a
+        rejected step of step_control error, embedded_midpoint)."""
+        return dt
+
     @abc.abstractmethod
     def step(self, state, X, F, geo, dt, rate):
         """Displacement of the vertices over one step of length dt (background flow at ``rate`` included)."""

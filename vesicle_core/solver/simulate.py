@@ -401,6 +401,7 @@ class _Run:
         """Take the step from X (eq. 29 or the scheme's), store the frame's velocity, check, checkpoint."""
         state, cfg, dt_step = self.state, self.cfg, self.dt_step
         dX = self.integ.step(state, X, F, geo, dt_step, rate)
+        dt_step = self.dt_step = self.integ.taken(dt_step)  # shorter where an error controller rejected the step
         if output_due and cfg.store_velocity:
             self.writer.set_velocity(self.be.asnumpy(dX) / dt_step)
         state.X = X + dX

@@ -3,7 +3,9 @@
 An adaptive run (the inextensible scheme) takes each step as the smallest of several limits
 (:meth:`vesicle_core.solver.integrators.Inextensible.next_dt`): the bending stability limit (Arnoldi, step_size), the
 tension's stability, the growth limit (``dt_growth`` e-folds of the fastest wrinkle), the flow's strain per step, the
-linearised constraint's strain (``dt_strain``) and the noise's displacement per step (``noise_step``). A fixed-step run
+linearised constraint's strain (``dt_strain``) and the noise's displacement per step (``noise_step``); with
+``step_control: error`` the error controller's step (``error``) replaces the growth and flow limits, and a step the
+controller rejected and retried shorter counts under ``error`` (:func:`rejected`). A fixed-step run
 has one limit, ``fixed``. The step actually taken can be a little shorter than the binding limit allows: it lands
 on the next frame, the reversal or the end in equal steps (simulate); the limit recorded is the one that set the
 step count, the argmin of the allowed steps, and ``event`` where the time left to that frame, reversal or end is
@@ -22,10 +24,10 @@ import math
 
 import numpy as np
 
-__all__ = ["LIMITS", "frame_scalars", "frame_variables", "record", "shares_line"]
+__all__ = ["LIMITS", "frame_scalars", "frame_variables", "record", "rejected", "shares_line"]
 
 #: every limit a step can be set by, in the order of its flag value (0, 1, ...); -1: no step yet
-LIMITS = ("fixed", "bending", "tension", "growth", "flow", "strain", "noise_step", "event")
+LIMITS = ("fixed", "bending", "tension", "growth", "flow", "strain", "noise_step", "event", "error")
 
 _MEANING = {
     "fixed": "the fixed step of a non-adaptive run (dt given, or the explicit and projection schemes)",
@@ -36,6 +38,8 @@ _MEANING = {
     "strain": "the linearised area constraint's second-order strain per step (dt_strain)",
     "noise_step": "the thermal noise's rms displacement per step (noise_step h)",
     "event": "the time left to the next frame, the reversal or the end, where that is shorter than every limit",
+    "error": "step_control error: the step the error controller wants (embedded_midpoint; it replaces growth and "
+             "flow), or the retry of a rejected step",
 }
 
 
@@ -59,6 +63,18 @@ def record(state, limits: dict, binding: str, until_event: float = math.inf) -> 
     state.limit_last = code
     # a limit that allows any step (noise_step without noise) did not apply
     state.limit_dt = [float(dt) if math.isfinite(dt := limits.get(name, math.nan)) else math.nan for name in LIMITS]
+
+
+def rejected(state, dt: float) -> None:
+    """The step just recorded was rejected by the error controller (step_control error) and is retried at ``dt``:
+    the step counts as set by the ``error`` limit, which allowed ``dt``; the other limits' allowed steps stay."""
+    if state.limit_counts is None:  # a step taken outside the driver's record
+        return
+    error = LIMITS.index("error")
+    state.limit_counts[state.limit_last] -= 1
+    state.limit_counts[error] += 1
+    state.limit_last = error
+    state.limit_dt[error] = float(dt)
 
 
 def frame_scalars(state) -> dict:

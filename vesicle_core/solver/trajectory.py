@@ -71,6 +71,7 @@ class State:
     limit_counts: list = None  # steps set by each of step_limits.LIMITS since the last frame
     limit_last: int = -1  # the limit that set the last step (index in step_limits.LIMITS; -1: no step yet)
     limit_dt: list = None  # the step each limit allowed for the last step (tau, NaN: not applied)
+    dt_error: float = 0.0  # step_control error: the next step the error controller wants (tau; 0: none yet)
 
 
 def save_checkpoint(path: Path, state: State, be, u_hat):
@@ -104,6 +105,7 @@ def save_checkpoint(path: Path, state: State, be, u_hat):
         "shape_prev": np.asarray(state.shape_prev, dtype=float), "sigma_g": state.sigma_g,
         "next_output_t": state.next_output_t, "seed_l_max": state.seed_l_max, "wall_s": state.wall_s,
         "tension_rho_age": state.tension_rho_age, "strain_err": state.strain_err, "dt_bending": state.dt_bending,
+        "dt_error": state.dt_error,
     }
     if state.dt_steps:  # netCDF attributes cannot be empty
         attrs["dt_steps"] = np.asarray(state.dt_steps, dtype=float)
@@ -144,6 +146,7 @@ def load_checkpoint(path: Path, xp):
         limit_last=int(a.get("limit_last", -1)),
         limit_counts=[int(v) for v in np.atleast_1d(a["limit_counts"])] if "limit_counts" in a else None,
         limit_dt=[float(v) for v in np.atleast_1d(a["limit_dt"])] if "limit_dt" in a else None,
+        dt_error=float(a.get("dt_error", 0.0)),
     )
     u_hat = ds["u_hat_re"].values + 1j * ds["u_hat_im"].values if "u_hat_re" in ds else None
     return st, u_hat
