@@ -118,7 +118,9 @@ class HarmonicSpace:
                               f"{faces.shape[0]} triangles")
         self.W = np.asarray(A0, dtype=float)
         self.G = self.B.T @ (self.W[:, None] * self.B)
-        self.G_chol = np.linalg.cholesky(self.G)
+        # Fortran order: LAPACK's potrs reads the factor in place, where a C-ordered one was copied (and checked for
+        # NaN) on every solve, 22 MB at l_t = 40: 46 ms a solve against 8 ms, with the same bits (G_solve)
+        self.G_chol = np.asfortranarray(np.linalg.cholesky(self.G))
 
     def faces(self, c):
         """Per-triangle tension B c."""
@@ -129,9 +131,10 @@ class HarmonicSpace:
         return self.B.T @ f
 
     def G_solve(self, r):
+        """G^-1 r by the Cholesky factor (the factor is finite by construction; r is checked, as before)."""
         import scipy.linalg as sl
 
-        return sl.cho_solve((self.G_chol, True), r)
+        return sl.cho_solve((self.G_chol, True), np.asarray_chkfinite(r), check_finite=False)
 
     def fit(self, sigma_faces):
         """Coefficients of the W-orthogonal projection of a per-triangle field on the space."""
