@@ -219,7 +219,9 @@ class Inextensible(Integrator):
             self.ale = ale(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
                                      maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None,
-                                     secant=cfg.tension_preconditioner == "secant")
+                                     secant=cfg.tension_preconditioner == "secant",
+                                     # the solve's basis products in the grid's precision (HarmonicTensionSolver)
+                                     basis_dtype=np.float32 if cfg.dtype == "float32" else None)
 
     def _start(self, c):
         """The solve's start coefficients: c, with the prescribed uniform tension in l = 0 (tension_fixed)."""
