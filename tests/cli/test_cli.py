@@ -112,8 +112,12 @@ def test_run_command_reports_where_the_time_went(tmp_path, capsys):
     # the Stokes products are part of the call, and every step makes at least one
     assert 0 < at["stokes_s"] < at["wall_time_s_last_call"]
     assert at["stokes_solves"] >= at["steps"] > 0
-    share = round(100 * at["stokes_s"] / at["wall_time_s_last_call"])
+    # the bending limit's measurement makes Stokes products too (counted in stokes_solves): timed, and in the share
+    assert (at["bending_stokes_s"] > 0) == (at["bending_solves"] > 0)
+    wall = at["wall_time_s_last_call"]
+    share = round(100 * (at["stokes_s"] + at["bending_stokes_s"]) / wall)
     assert f"{at['steps']} steps" in out and f"Stokes products {share}%" in out
+    assert f"({round(100 * at['bending_stokes_s'] / wall)}% in the bending limit's measurement)" in out
     # the closing line's shares of the steps by the limit that set them: exact counts from the frames
     counts = {k: int(ds[f"steps_{k}"].sum()) for k in LIMITS}
     assert sum(counts.values()) == at["steps"]

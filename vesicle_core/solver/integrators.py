@@ -181,6 +181,7 @@ class Inextensible(Integrator):
         self.iterations = []
         self._bending_step = -1  # step of the last bending-limit measurement
         self.bending_solves = 0  # Stokes solves spent on them (this call)
+        self.bending_stokes_s = 0.0  # and those solves' wall time, their forces' differences left out
         self.dt_bending_min = self.dt_bending_last = dt_bending
         self.thermal = self._thermal() if cfg.kT > 0 else None
         # the noise's step limit, from the reference mesh so that a resumed run gets the same one
@@ -223,7 +224,9 @@ class Inextensible(Integrator):
             self.ale = ale(self.space, cfg.h, be.asnumpy(self.solver.xp.asarray(self.X0)), faces)
         return HarmonicTensionSolver(self.mobility, mem.topo, self.space, cfg.Lambda_eff, tol=cfg.cg_tol,
                                      maxiter=cfg.cg_maxiter, hold_area=cfg.tension_fixed is None,
-                                     secant=cfg.tension_preconditioner == "secant")
+                                     secant=cfg.tension_preconditioner == "secant",
+                                     # the solve's basis products in the grid's precision (HarmonicTensionSolver)
+                                     basis_dtype=np.float32 if cfg.dtype == "float32" else None)
 
     def _start(self, c):
         """The solve's start coefficients: c, with the prescribed uniform tension in l = 0 (tension_fixed)."""
@@ -270,7 +273,9 @@ class Inextensible(Integrator):
         at the first): the state carries both, so a resumed run measures what the first call did."""
         from .step_size import stiffest_mode
 
+        t0 = self.solver.seconds
         lam, v, solves = stiffest_mode(self.solver, state.X, v0=state.bending_mode, max_iter=20, seed=state.step)
+        self.bending_stokes_s += self.solver.seconds - t0
         self._bending_step = state.step
         self.bending_solves += solves
         if lam > 0:
@@ -402,6 +407,8 @@ class Inextensible(Integrator):
                 # this call's wall time in the products M F through self.mobility: the step's, the tension's and
                 # the thermal drift's (counted in thermal_stokes_solves), not the bending limit's
                 "stokes_s": float(self.mobility.seconds),
+                # the bending limit's products, timed alone (its solves are in stokes_solves)
+                "bending_stokes_s": float(self.bending_stokes_s),
                 "bending_solves": int(self.bending_solves), "dt_bending_min_tau": float(self.dt_bending_min),
                 "dt_bending_last_tau": float(self.dt_bending_last),
                 "cg_fallbacks": int(getattr(self.tension, "fallbacks", 0)),  # local -> compliance repeats (this call)

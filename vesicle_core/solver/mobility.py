@@ -107,6 +107,8 @@ class IBMSolver:
             xp.asarray(X0, dtype=xp.float64), faces, xp=xp, Lambda=penalty, K_volume=cfg.K_volume,
             K_area=cfg.K_area, area_model=cfg.area_model,
         )
+        # wall time of induced_displacement (stencil, spreading, Stokes, interpolation), as IBMMobility.seconds
+        self.seconds = 0.0
 
     def forces(self, X):
         return self.membrane.forces(X)
@@ -117,6 +119,7 @@ class IBMSolver:
         ``advance``: at finite Re, step the stored fluid state (False: steady response, state untouched).
         ``same_points``: X is the same as in the previous call, so its stencil is reused.
         """
+        t0 = time.perf_counter()
         if not same_points:
             self.coupler.prepare(X)
         f = self.coupler.spread(F)
@@ -125,7 +128,9 @@ class IBMSolver:
             G *= dt
         else:
             G = self.stokes.step(f, dt, out=self._grid_buf)
-        return self.coupler.interpolate(G)
+        out = self.coupler.interpolate(G)
+        self.seconds += time.perf_counter() - t0
+        return out
 
     def membrane_velocity(self, X):
         """Induced velocity of the membrane, steady Stokes, no background flow (for dt estimates)."""

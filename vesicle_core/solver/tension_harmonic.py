@@ -118,7 +118,9 @@ class HarmonicSpace:
                               f"{faces.shape[0]} triangles")
         self.W = np.asarray(A0, dtype=float)
         self.G = self.B.T @ (self.W[:, None] * self.B)
-        self.G_chol = np.linalg.cholesky(self.G)
+        # Fortran order: LAPACK's potrs reads the factor in place, where a C-ordered one was copied (and checked for
+        # NaN) on every solve, 22 MB at l_t = 40: 46 ms a solve against 8 ms, with the same bits (G_solve)
+        self.G_chol = np.asfortranarray(np.linalg.cholesky(self.G))
 
     def faces(self, c):
         """Per-triangle tension B c."""
@@ -129,9 +131,10 @@ class HarmonicSpace:
         return self.B.T @ f
 
     def G_solve(self, r):
+        """G^-1 r by the Cholesky factor (the factor is finite by construction; r is checked, as before)."""
         import scipy.linalg as sl
 
-        return sl.cho_solve((self.G_chol, True), r)
+        return sl.cho_solve((self.G_chol, True), np.asarray_chkfinite(r), check_finite=False)
 
     def fit(self, sigma_faces):
         """Coefficients of the W-orthogonal projection of a per-triangle field on the space."""
@@ -147,7 +150,7 @@ class HarmonicTensionSolver:
     returns the per-triangle tension B c and the velocity; ``last`` is a SolveInfo."""
 
     def __init__(self, mobility, topo, space: HarmonicSpace, Lambda, tol=1e-5, maxiter=200, refresh=RHO_REFRESH,
-                 stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0, hold_area=True, secant=False):
+                 stale=STALE_ITERATIONS, probes=RHO_PROBES, seed=0, hold_area=True, secant=False, basis_dtype=None):
         if not Lambda > 0:
             raise ConfigError(f"Lambda (area-stretch modulus) must be > 0 for the tension solve, got {Lambda!r}")
         self.mobility = mobility
@@ -178,17 +181,21 @@ class HarmonicTensionSolver:
         self.noise_c = None  # the last solve's modelled noise response (solve's ``unpredicted``)
         # B on the mesh's device (NumPy: B itself). On a GPU the products B c and B^T f of every CG iteration then run
         # there, and only the K coefficients cross, not the F per-triangle values (with F K host flops each way:
-        # 138 M at 82k triangles and l_t = 40)
-        self._B = topo.xp.asarray(space.B)
+        # 138 M at 82k triangles and l_t = 40). ``basis_dtype`` float32 (the run's float32 grid): these products read
+        # half the memory, and B is the step's largest array (F K: 243 MB at 9512 vertices, 1.2 GB at 21398), so
+        # they take about half as long; their rounding (~1e-6 of sigma) is that of the float32 grid the mobility
+        # already works on (tests/solver/test_step_cost.py). Coefficients, G and every other use of B stay float64.
+        self._B = topo.xp.asarray(space.B if basis_dtype is None else space.B.astype(basis_dtype))
 
     # ------------------------------------------------------------------ operator and preconditioner
     def _xp_faces(self, c):
         """Per-triangle tension B c on the mesh's device, from host coefficients c."""
-        return self._B @ self.topo.xp.asarray(c)
+        xp = self.topo.xp
+        return (self._B @ xp.asarray(c, dtype=self._B.dtype)).astype(xp.float64, copy=False)
 
     def _test(self, f):
         """B^T f (host, K) of a per-triangle field f on the mesh's device: the space's Galerkin test."""
-        return to_numpy(self._B.T @ f)
+        return np.asarray(to_numpy(self._B.T @ f.astype(self._B.dtype, copy=False)), dtype=np.float64)
 
     def apply_rate(self, c, geo):
         """(B^T D M D^T B c, M D^T B c): the area rate per unit time of a tension c and its velocity."""
