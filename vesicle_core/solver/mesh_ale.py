@@ -44,7 +44,7 @@ class AreaALE:
         self.capped = 0
         self.h = float(h)
         self.damp = float(damp)
-        self._order = None  # the normal equations' elimination order, found at the first call (same pattern after)
+        self._order = None  # the normal equations' elimination order (elimination_order), at the first call
         self.calls = 0
         self.seconds = 0.0
 
@@ -77,7 +77,9 @@ class AreaALE:
             rows.append(r * self.h)
             rhs.append(b)
         A = sps.vstack(rows).tocsr() if len(rows) > 1 else rows[0]
-        u, self._order = damped_least_squares(A, np.concatenate(rhs), self.damp, self._order)
+        if self._order is None:
+            self._order = elimination_order(faces, Xn.shape[0])
+        u = damped_least_squares(A, np.concatenate(rhs), self.damp, self._order)
         w = (T @ (u * self.h)).reshape(-1, 3)
         wmax = float(np.sqrt((w**2).sum(axis=1)).max())
         # the membrane's own displacement may always be matched: a flow that shears the surface needs the mesh to
@@ -98,12 +100,11 @@ class AreaALE:
 
 
 def damped_least_squares(A, b, damp, order=None):
-    """-> (argmin_u |A u - b|^2 + damp^2 |u|^2, the elimination order used), by a sparse factorisation of its normal
-    equations (A^T A + damp^2 I) u = A^T b (symmetric positive definite: no pivoting). ``order``: a fill-reducing
-    order of the unknowns from an earlier call on the same pattern (the ALE's is the mesh's vertex adjacency, fixed by
-    the faces), or None for SuperLU's minimum degree on this matrix. The exact minimiser is a smooth function of A
-    and b, where a Krylov iterate stopped short of it is not (AreaALE). Its round-off is cond(A^T A) ~
-    (sigma_max / damp)^2 ~ 5e5 times eps; at 9512 vertices the factors hold ~2.5e6 entries."""
+    """-> argmin_u |A u - b|^2 + damp^2 |u|^2, by a sparse factorisation of its normal equations
+    (A^T A + damp^2 I) u = A^T b (symmetric positive definite: no pivoting), eliminating the unknowns in ``order``
+    (:func:`elimination_order`; None: SuperLU's minimum degree on this matrix). The exact minimiser is a smooth
+    function of A and b, where a Krylov iterate stopped short of it is not (AreaALE). Its round-off is cond(A^T A)
+    ~ (sigma_max / damp)^2 ~ 5e5 times eps; at 9512 vertices the factors hold ~2.5e6 entries."""
     import scipy.sparse as sps
     import scipy.sparse.linalg as spla
 
@@ -112,11 +113,30 @@ def damped_least_squares(A, b, damp, order=None):
     rhs = A.T @ np.asarray(b, dtype=float)
     opts = {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
     if order is None:
-        lu = spla.splu(normal, permc_spec="MMD_AT_PLUS_A", **opts)
-        return lu.solve(rhs), np.argsort(lu.perm_c)
+        return spla.splu(normal, permc_spec="MMD_AT_PLUS_A", **opts).solve(rhs)
     u = np.empty_like(rhs)
     u[order] = spla.splu(normal[order][:, order].tocsc(), permc_spec="NATURAL", **opts).solve(rhs[order])
-    return u, order
+    return u
+
+
+def elimination_order(faces, n_vertices):
+    """A fill-reducing order of the ALE's 2V tangential unknowns (two per vertex): SuperLU's minimum degree on the
+    pattern of its normal equations, the vertex adjacency (a triangle's rows couple its three corners) in 2 x 2
+    blocks. From the faces alone, so that every call, and a resumed run's first, factorises in the same order (the
+    same round-off: a resume is bit for bit the uninterrupted run)."""
+    import scipy.sparse as sps
+    import scipy.sparse.linalg as spla
+
+    f = np.asarray(faces, dtype=np.int64)
+    i, j = np.repeat(f, 3, axis=1).ravel(), np.tile(f, (1, 3)).ravel()  # vertex pairs sharing a triangle
+    rows = (2 * i[:, None] + np.array([0, 0, 1, 1])).ravel()
+    cols = (2 * j[:, None] + np.array([0, 1, 0, 1])).ravel()
+    n = 2 * int(n_vertices)
+    pattern = sps.csc_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    # made strictly diagonally dominant (so positive definite): a matrix SuperLU factorises on that pattern
+    pattern = (pattern + sps.diags(np.asarray(pattern.sum(axis=1)).ravel() + 1.0)).tocsc()
+    lu = spla.splu(pattern, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return np.argsort(lu.perm_c)
 
 
 def tangent_basis(X, faces):
