@@ -4,7 +4,7 @@ be measured against the earlier ones in one session.
 
 Run by hand:
     python benchmarks/bench_harmonic_step.py [--level 4 | --n-vertices 5762] [--delta 0.116] [--N 128] [--chi 268.2]
-        [--ale-iterations 100] [--ale-cap 0.05] [--ale-beta 0.1] [--rho per-l|probe] [--rho-refresh 50] [--rho-stale 4]
+        [--ale-damp 1e-3] [--ale-cap 0.05] [--ale-beta 0.1] [--rho per-l|probe] [--rho-refresh 50] [--rho-stale 4]
         [--set dt_strain=1 ...]
 
 The case: a quasi-uniform mesh of 10 4^level + 2 vertices (or --n-vertices) with excess area Delta, `scheme:
@@ -56,9 +56,9 @@ def set_defaults(func, **values):
 
 
 def patch(a):
-    """Set the solver's constants for this process: the ALE's LSQR iterations and step cap (AreaALE, and through
+    """Set the solver's constants for this process: the ALE's Tikhonov weight and step cap (AreaALE, and through
     it ShapeALE and QualityALE), the angle rows' weight and the rho_l measurement."""
-    set_defaults(MA.AreaALE.__init__, iter_lim=a.ale_iterations, max_step=a.ale_cap)
+    set_defaults(MA.AreaALE.__init__, damp=a.ale_damp, max_step=a.ale_cap)
     set_defaults(MA.QualityALE.__init__, beta=a.ale_beta)
     set_defaults(MA.ShapeALE.__init__, beta=a.ale_beta)
     if a.rho == "per-l":
@@ -73,8 +73,9 @@ def main():
     ap.add_argument("--delta", type=float, default=0.116)
     ap.add_argument("--N", type=int, default=128)
     ap.add_argument("--chi", type=float, default=268.2)
-    ap.add_argument("--ale-iterations", type=int, default=MA.ALE_ITERATIONS)
-    ap.add_argument("--ale-cap", type=float, default=MA.AreaALE.__init__.__defaults__[2],
+    ap.add_argument("--ale-damp", type=float, default=MA.AreaALE.__init__.__defaults__[0],
+                    help="the ALE least squares' Tikhonov weight")
+    ap.add_argument("--ale-cap", type=float, default=MA.AreaALE.__init__.__defaults__[1],
                     help="largest tangential ALE step per step, in h")
     ap.add_argument("--ale-beta", type=float, default=MA.QualityALE.__init__.__defaults__[0],
                     help="weight of the shape and quality ALEs' angle rows")

@@ -1,12 +1,13 @@
 """What the mesh ALEs cost per call and what they do, on the frames of a finished run (run by hand).
 
-    python benchmarks/bench_mesh_ale.py TRAJ.nc [--frames 10] [--h H] [--iter-lim 100]
+    python benchmarks/bench_mesh_ale.py TRAJ.nc [--frames 10] [--h H] [--damp 1e-3]
 
 For `mesh_ale` area, shape and quality (mesh_ale.AreaALE, ShapeALE, QualityALE) on consecutive stored frames
 k -> k + 1: the membrane's displacement dX = X_{k+1} - X_k (several steps: an upper bound on one step's), the area
-error of frame k against the reference (first) frame, and per ALE the median seconds per call, its LSQR
-iterations, the largest |w| / h, and the mesh quality (min, median) and triangle strain (against A0) of
-X_k + dX + w against X_k + dX. Report ratios of the ALEs measured in one run: timings here are noisy.
+error of frame k against the reference (first) frame, and per ALE the median seconds per call (its damped least
+squares solved by a sparse factorisation, mesh_ale.damped_least_squares), the largest |w| / h, and the mesh
+quality (min, median) and triangle strain (against A0) of X_k + dX + w against X_k + dX. Report ratios of the ALEs
+measured in one run: timings here are noisy.
 """
 
 import os
@@ -29,7 +30,7 @@ def main(argv=None):
     ap.add_argument("trajectory")
     ap.add_argument("--frames", type=int, default=10, help="frame pairs to use, from the reversal on")
     ap.add_argument("--h", type=float, default=None, help="grid spacing (default: the run's L / N)")
-    ap.add_argument("--iter-lim", type=int, default=100, help="LSQR iterations per call")
+    ap.add_argument("--damp", type=float, default=1e-3, help="the least squares' Tikhonov weight (AreaALE.damp)")
     a = ap.parse_args(argv)
     ds = xr.open_dataset(a.trajectory)
     faces = ds.face_node_connectivity.values.astype(np.int64)
@@ -41,9 +42,9 @@ def main(argv=None):
     space = HarmonicSpace(X[0], faces, A0, l_max)
     rev = int(np.argmax(ds.flow_sign.values < 0))
     ks = range(rev, min(rev + a.frames, X.shape[0] - 1))
-    ales = {"area": AreaALE(space, h, iter_lim=a.iter_lim),
-            "shape": ShapeALE(space, h, X[0], faces, iter_lim=a.iter_lim),
-            "quality": QualityALE(space, h, X[0], faces, iter_lim=a.iter_lim)}
+    ales = {"area": AreaALE(space, h, damp=a.damp),
+            "shape": ShapeALE(space, h, X[0], faces, damp=a.damp),
+            "quality": QualityALE(space, h, X[0], faces, damp=a.damp)}
     print(f"{a.trajectory}: {X.shape[1]} vertices, l_t = {space.l_max}, h = {h:.4g}, frames {ks.start}..{ks.stop}")
     out = {}
     for name, ale in ales.items():
@@ -62,7 +63,7 @@ def main(argv=None):
             qmed.append(np.median(q))
             strain.append(np.abs(g1.area / A0 - 1).max())
         out[name] = np.median(secs)
-        print(f"  {name:7s}: {np.median(secs) * 1e3:7.1f} ms/call, LSQR {ale.iterations / ale.calls:.0f} it, "
+        print(f"  {name:7s}: {np.median(secs) * 1e3:7.1f} ms/call, "
               f"max |w|/h {np.max(wmax):.3g}, quality min {np.min(qmin):.3f} median {np.median(qmed):.3f}, "
               f"triangle strain max {np.max(strain):.3g}")
     r = {k: out[k] / out["area"] for k in ("shape", "quality")}

@@ -40,8 +40,9 @@ def stage(path, name):
         return "membrane forces and geometry"
     if path.endswith("tension.py"):
         return "tension solve (CG vector work)"
-    if "lsqr" in path or "lsqr" in name or path.endswith("scipy/sparse/_compressed.py"):
-        return "mesh_ale (LSQR, sparse products)"
+    if "mesh_ale.py" in path or "splu" in name or "superlu" in name.lower() or path.endswith(
+            "scipy/sparse/_compressed.py"):
+        return "mesh_ale (sparse factorisation, sparse products)"
     if path.endswith("tension_harmonic.py") or "cho_solve" in name or "potrs" in name:
         return "harmonic tension (basis products, G solves)"
     return None

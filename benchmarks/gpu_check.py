@@ -9,7 +9,7 @@ Parts (each recorded in the JSON report, each failure recorded there instead of 
 2. timings: a steady Stokes solve and one inextensible step of the default job's discretisation (harmonic tension,
    quality ALE, sharp coupling with bao6, float32 grid) at 128^3, 256^3 and 512^3 on icosphere meshes of edge ~h
    (2562, 10242, 40962 vertices), medians of CUDA-event times (the step also as host wall time: its ALE and
-   tension coefficients run on the host).
+   tension coefficients run on the host), and a noisy step's noise field (drawn on the host, copied, transformed).
 3. case: the default job's S = 2224 case (config/config.yaml: Delta = 0.116, 9512-vertex quasi-uniform mesh at
    128^3) on CuPy and on NumPy (all CPU cores), l_* of each from the spectra (eq. 31); pass if they agree to 1e-3
    relative.
@@ -92,6 +92,7 @@ def _time_size(N, level, timer: Timer, repeats: int) -> dict:
     """The Stokes solve and one inextensible step at N^3 (see timings)."""
     from vesicle_core.geometry import mesh as M
     from vesicle_core.model.run_config import RunConfig
+    from vesicle_core.solver.fluctuations import ThermalNoise
     from vesicle_core.solver.integrators import Inextensible
     from vesicle_core.solver.mobility import IBMSolver
     from vesicle_core.solver.trajectory import State
@@ -113,8 +114,12 @@ def _time_size(N, level, timer: Timer, repeats: int) -> dict:
         integ.step(state, X, F, geo, 1e-6, cfg.chi)
 
     step = timer.ms(one_step, repeats)
+    # kT > 0: the step's noise field, drawn on the host (NumPy's Philox, the same numbers as a NumPy run), copied to
+    # the device and transformed: what a noisy step adds (docs/howto/gpu-check.md, the transfers)
+    noise, steps = ThermalNoise(s.stokes, 0.0405, seed=0), iter(range(1 << 30))
+    draw = timer.ms(lambda: noise.displacement(1e-6, next(steps), out=s._grid_buf), repeats)
     return {"n_vertices": int(m.n_vertices), "tension_l_max": int(integ.space.l_max), "stokes_solve": solve,
-            "inextensible_step": step, "cg_iterations_last": int(integ.tension.last.iterations)}
+            "inextensible_step": step, "noise_field": draw, "cg_iterations_last": int(integ.tension.last.iterations)}
 
 
 def timings(sizes: dict, timer: Timer, repeats: int) -> dict:

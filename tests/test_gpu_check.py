@@ -19,6 +19,7 @@ def test_strict_gpu_check_runs_end_to_end_on_the_stand_in(tmp_path):
     assert rep["device"].startswith("strict CuPy stand-in") and "stand-in" in rep["timer"]  # never GPU numbers
     t = rep["timings"]["16"]
     assert t["stokes_solve"]["median_ms"] > 0 and t["inextensible_step"]["median_ms"] > 0
+    assert t["noise_field"]["median_ms"] > 0  # a noisy step's host draw, copy and transform
     assert rep["case"]["passed"] and rep["case"]["relative_difference"] <= 1e-3
     assert "pool_total_bytes" in rep["memory"]
     assert rep["stand_in_transfers"]["d2h"] > 0 and rep["stand_in_transfers"]["h2d"] > 0

@@ -426,8 +426,7 @@ class Inextensible(Integrator):
             out = {"tension_l_used": int(self.space.l_max), "tension_modes": int(self.space.K),
                    "tension_rho_refreshes": int(self.tension.refreshes)}
             if self.ale is not None:  # this call's
-                out.update(ale_lsqr_iterations_mean=self.ale.iterations / max(self.ale.calls, 1),
-                           ale_s=self.ale.seconds, ale_capped_steps=self.ale.capped)
+                out.update(ale_s=self.ale.seconds, ale_capped_steps=self.ale.capped)
             return out
         local = self.tension.local
         if local is None:

@@ -14,10 +14,6 @@ from ..geometry.surface import cross_rows
 from ..xp import to_numpy
 from .tension_harmonic import HarmonicSpace
 
-#: LSQR iterations of the ALE per step: 50, 100 and 400 hold the triangle strain alike (max 6.2e-3, S = 2224 at
-#: 128^3), 400 at 3x the time (25 s of a run against 8 s); what one step leaves, the next corrects
-ALE_ITERATIONS = 100
-
 
 # --------------------------------------------------------------------------- tangential (ALE) mesh velocity
 class AreaALE:
@@ -30,17 +26,17 @@ class AreaALE:
 
         min_w |W^(-1/2) (D w - y)|^2 + damp^2 |w|^2 / h^2,   y = -(I - W B G^-1 B^T)(D dX + A - A^0),
 
-    by LSQR (sparse D, no Stokes solve). y has no component the tension holds (B^T y = 0), and a tangential w
-    changes the shape only at second order, so the membrane's motion is unchanged; what changes is which mesh
-    point sits where (an arbitrary Lagrangian-Eulerian mesh). ``damp`` keeps w small where no vertex motion
-    reaches an area pattern (the triangle space's near-null modes)."""
+    solved exactly (:func:`damped_least_squares`: no Stokes solve). y has no component the tension holds
+    (B^T y = 0), and a tangential w changes the shape only at second order, so the membrane's motion is unchanged;
+    what changes is which mesh point sits where (an arbitrary Lagrangian-Eulerian mesh). ``damp`` keeps w small
+    where no vertex motion reaches an area pattern (the triangle space's near-null modes: 2V unknowns against
+    F = 2V - 4 rows, and ~1% of the singular values of the area rows below damp) and makes the minimiser unique, with
+    a condition number sigma_max / damp ~ 400-700 (162 and 642 vertices), so w is a Lipschitz function of the step's
+    data: a perturbation of X by 1e-14 moves it by ~1e-15 R. (Until 2026-12-08 the minimum was sought by 100 LSQR
+    iterations, which do not converge on the near-null cluster at a few hundred vertices: that iterate moved by up
+    to 5e-5 R for the same 1e-14, and the strict GPU-path tests could compare runs with an ALE only to 1e-4 R.)"""
 
-    #: LSQR's atol and btol. Its stopping test makes w a discontinuous function of the data: one iteration more or
-    #: less moved a 162-vertex vesicle by ~1e-6 R when its start shape was perturbed by 1e-14; 0 runs all iter_lim
-    #: iterations (a continuous map: what tests comparing two array backends to round-off set)
-    tol = 1e-8
-
-    def __init__(self, space: HarmonicSpace, h, damp=1e-3, iter_lim=ALE_ITERATIONS, max_step=0.05, follow=1.0):
+    def __init__(self, space: HarmonicSpace, h, damp=1e-3, max_step=0.05, follow=1.0):
         self.space = space
         self.max_step = float(max_step)  # largest |w| per step, in h: the rest is left to the next steps
         self.follow = float(follow)  # ... plus this times the step's largest membrane displacement
@@ -48,8 +44,7 @@ class AreaALE:
         self.capped = 0
         self.h = float(h)
         self.damp = float(damp)
-        self.iter_lim = int(iter_lim)
-        self.iterations = 0
+        self._order = None  # the normal equations' elimination order (elimination_order), at the first call
         self.calls = 0
         self.seconds = 0.0
 
@@ -63,7 +58,6 @@ class AreaALE:
         import time
 
         import scipy.sparse as sps
-        import scipy.sparse.linalg as spla
 
         from .tension import face_D_matrix
 
@@ -83,9 +77,10 @@ class AreaALE:
             rows.append(r * self.h)
             rhs.append(b)
         A = sps.vstack(rows).tocsr() if len(rows) > 1 else rows[0]
-        out = spla.lsqr(A, np.concatenate(rhs), damp=self.damp, atol=self.tol, btol=self.tol,
-                          iter_lim=self.iter_lim)
-        w = (T @ (out[0] * self.h)).reshape(-1, 3)
+        if self._order is None:
+            self._order = elimination_order(faces, Xn.shape[0])
+        u = damped_least_squares(A, np.concatenate(rhs), self.damp, self._order)
+        w = (T @ (u * self.h)).reshape(-1, 3)
         wmax = float(np.sqrt((w**2).sum(axis=1)).max())
         # the membrane's own displacement may always be matched: a flow that shears the surface needs the mesh to
         # slip as fast as it moves (mesh_ale shape), and with the bounded speed alone the area ALE fell behind on the
@@ -95,7 +90,6 @@ class AreaALE:
         if wmax > cap:  # a large tangential step would fold triangles on a wrinkled surface
             w *= cap / wmax
             self.capped += 1
-        self.iterations += int(out[2])
         self.calls += 1
         self.seconds += time.perf_counter() - t0
         return topo.xp.asarray(w)
@@ -103,6 +97,46 @@ class AreaALE:
     def _extra_rows(self, X, dX, T):
         """Further least-squares rows (matrix on the 2V tangential unknowns, right-hand side): none here."""
         return ()
+
+
+def damped_least_squares(A, b, damp, order=None):
+    """-> argmin_u |A u - b|^2 + damp^2 |u|^2, by a sparse factorisation of its normal equations
+    (A^T A + damp^2 I) u = A^T b (symmetric positive definite: no pivoting), eliminating the unknowns in ``order``
+    (:func:`elimination_order`; None: SuperLU's minimum degree on this matrix). The exact minimiser is a smooth
+    function of A and b, where a Krylov iterate stopped short of it is not (AreaALE). Its round-off is cond(A^T A)
+    ~ (sigma_max / damp)^2 ~ 5e5 times eps; at 9512 vertices the factors hold ~2.5e6 entries."""
+    import scipy.sparse as sps
+    import scipy.sparse.linalg as spla
+
+    A = sps.csr_matrix(A)
+    normal = (A.T @ A + damp**2 * sps.identity(A.shape[1], format="csr")).tocsc()
+    rhs = A.T @ np.asarray(b, dtype=float)
+    opts = {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
+    if order is None:
+        return spla.splu(normal, permc_spec="MMD_AT_PLUS_A", **opts).solve(rhs)
+    u = np.empty_like(rhs)
+    u[order] = spla.splu(normal[order][:, order].tocsc(), permc_spec="NATURAL", **opts).solve(rhs[order])
+    return u
+
+
+def elimination_order(faces, n_vertices):
+    """A fill-reducing order of the ALE's 2V tangential unknowns (two per vertex): SuperLU's minimum degree on the
+    pattern of its normal equations, the vertex adjacency (a triangle's rows couple its three corners) in 2 x 2
+    blocks. From the faces alone, so that every call, and a resumed run's first, factorises in the same order (the
+    same round-off: a resume is bit for bit the uninterrupted run)."""
+    import scipy.sparse as sps
+    import scipy.sparse.linalg as spla
+
+    f = np.asarray(faces, dtype=np.int64)
+    i, j = np.repeat(f, 3, axis=1).ravel(), np.tile(f, (1, 3)).ravel()  # vertex pairs sharing a triangle
+    rows = (2 * i[:, None] + np.array([0, 0, 1, 1])).ravel()
+    cols = (2 * j[:, None] + np.array([0, 1, 0, 1])).ravel()
+    n = 2 * int(n_vertices)
+    pattern = sps.csc_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    # made strictly diagonally dominant (so positive definite): a matrix SuperLU factorises on that pattern
+    pattern = (pattern + sps.diags(np.asarray(pattern.sum(axis=1)).ravel() + 1.0)).tocsc()
+    lu = spla.splu(pattern, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return np.argsort(lu.perm_c)
 
 
 def tangent_basis(X, faces):
@@ -230,7 +264,9 @@ class QualityALE(ShapeALE):
         ramp_t = clip((Q_HI - q_t / q0_t) / (Q_HI - Q_LO), 0, 1),
 
     q_t its quality now and q0_t on the reference mesh: zero while the triangle keeps 90% of its reference quality,
-    full below 60%. A mesh that keeps its shape is moved as AreaALE moves it."""
+    full below 60%. A mesh that keeps its shape is moved as AreaALE moves it. The ramp is continuous (Lipschitz, slope
+    1 / (Q_HI - Q_LO) in q_t / q0_t), and a triangle whose weight reaches zero drops rows that add nothing to the
+    normal equations, so which rows are on makes w no less continuous in X than AreaALE's."""
 
     def __init__(self, space: HarmonicSpace, h, X0, faces, beta=0.1, q_hi=Q_HI, q_lo=Q_LO, **kw):
         super().__init__(space, h, X0, faces, beta=beta, **kw)
@@ -261,7 +297,7 @@ class QualityALE(ShapeALE):
         if not self.active:
             return ()
         GT, b = self._share_rows(shares, dX, T, self.weight * ramp)
-        # the other triangles' rows are zero (and so is their right-hand side): leaving them out of the least
-        # squares changes no iterate and saves their share of every LSQR product
+        # the other triangles' rows are zero (and so is their right-hand side): they add nothing to the normal
+        # equations, and leaving them out saves their share of the products
         keep = (on[None, :] + ramp.size * np.arange(3)[:, None]).ravel()
         return ((GT[keep], b[keep]),)
