@@ -196,7 +196,7 @@ def test_config_files_satisfy_schema_and_solver():
     from vesicle_core.model.units import chi_from_S
 
     schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
-    params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"
+    params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.json"
     run_props = yaml.safe_load(params_schema.read_text())["$defs"]["run"]["properties"]
     assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
     base = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())
