@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from snakemake_runner import run_snakemake
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -39,9 +40,7 @@ def _workflow_copy(dst):
 
 
 def _snakemake(wd, *args, timeout=300):
-    exe = BIN / "snakemake"
-    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "snakemake"]
-    return subprocess.run([*cmd, *args], cwd=wd, env=_env(), capture_output=True, text=True, timeout=timeout)
+    return run_snakemake(wd, args, _env(), timeout=timeout)
 
 
 def _simulate_blocks(text):

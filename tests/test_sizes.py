@@ -6,6 +6,7 @@ exempted here.
 """
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -58,6 +59,7 @@ def _holders(pattern):
     return sorted(str(p.relative_to(PKG)) for p in _sources() if re.search(pattern, _code(p)))
 
 
+@functools.cache  # parsed once per test process, not once per ONE_HOME entry (each parses the whole package)
 def _code(path):
     """The module without comments and docstrings, so that prose about np.cross does not count."""
     tree = ast.parse(path.read_text())

@@ -5,22 +5,17 @@ runs end to end. Every test works in a temporary copy of Snakefile, workflow/ an
 import os
 import re
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 import yaml
+from snakemake_runner import run_snakemake
 
 from vesicle_core.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
-
-
-def _snakemake_cmd():
-    exe = BIN / "snakemake"
-    return [str(exe)] if exe.exists() else [sys.executable, "-m", "snakemake"]
 
 
 def _env():
@@ -42,8 +37,7 @@ def workflow_copy(tmp_path):
 
 def snakemake(wd, *args, timeout=300):
     """Run snakemake in ``wd`` (targets first: --configfile takes several values)."""
-    return subprocess.run([*_snakemake_cmd(), *args], cwd=wd, env=_env(), capture_output=True, text=True,
-                          timeout=timeout)
+    return run_snakemake(wd, args, _env(), timeout=timeout)
 
 
 def write_config(wd, cfg, name="test.yaml"):
@@ -196,7 +190,7 @@ def test_config_files_satisfy_schema_and_solver():
     from vesicle_core.model.units import chi_from_S
 
     schema = ROOT / "workflow" / "schemas" / "config.schema.yaml"
-    params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.yaml"
+    params_schema = ROOT / "workflow" / "schemas" / "run_parameters.schema.json"
     run_props = yaml.safe_load(params_schema.read_text())["$defs"]["run"]["properties"]
     assert set(run_props) == {f.name for f in fields(RunConfig)} - {"chi"}
     base = yaml.safe_load((ROOT / "config" / "config.yaml").read_text())

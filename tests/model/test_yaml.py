@@ -1,4 +1,5 @@
-"""Every YAML file of the project loads with unique keys (PyYAML would silently keep the last duplicate)."""
+"""Every YAML file of the project, and the JSON schema fragment (JSON is YAML), loads with unique keys (PyYAML would
+silently keep the last duplicate)."""
 
 from pathlib import Path
 
@@ -8,7 +9,7 @@ import yaml
 from vesicle_core.io import safe_load_unique
 
 ROOT = Path(__file__).resolve().parents[2]
-FILES = sorted(p for d in ("config", "workflow") for p in (ROOT / d).rglob("*.y*ml"))
+FILES = sorted(p for d in ("config", "workflow") for glob in ("*.y*ml", "*.json") for p in (ROOT / d).rglob(glob))
 
 
 def test_there_are_yaml_files():
