@@ -245,19 +245,10 @@ RUN_PARAMETERS: tuple[Parameter, ...] = (
         lo_open=True,
         also=("power", "formula"),
     ),
-    Parameter(
-        "dt_safety",
-        0.8,
-        "float",
-        "fraction of the stability limit used as the step. The limit is measured "
-        "at the initial shape; a vesicle that deforms strongly (Delta ~ 1) stiffens as it stretches and needs "
-        "~0.4 with the explicit and projection schemes. An unstable run stops with exit status 3 and "
-        "failure.nc",
-        "",
-        0.0,
-        1.0,
-        lo_open=True,
-    ),
+    Parameter("dt_safety", 0.8, "float", "fraction of the stability limit used as the step. The limit is measured "
+              "at the initial shape; a vesicle that deforms strongly (Delta ~ 1) stiffens as it stretches and needs "
+              "~0.4 with the explicit and projection schemes. An unstable run stops with exit status 3 and "
+              "failure.nc", "", 0.0, 1.0, lo_open=True),
     Parameter(
         "output_every",
         0.02,
