@@ -97,3 +97,25 @@ def test_case_row_reads_a_microscope_file():
     assert r["k_star"] == 60.0 and r["cost"] == pytest.approx(0.05) and r["P"] == 0.5
     assert [s["pattern"] for s in r["series"]] == ["labyrinth", "herringbone", "peanut", "labyrinth"]
     assert math.isnan(case_row("c", mic.drop_vars("is_t_star"))["t_star"])
+
+
+def test_the_validation_report_includes_the_section_when_named():
+    from vesicle_core.validation.report import render
+
+    from test_validation import _ladder  # the same directory, on the path in pytest's default import mode
+
+    text = render({"morphology_section": "validation_morphology.md"}, _ladder(15.0, 28.0))
+    assert "```{include} validation_morphology.md\n```" in text
+    assert text.index("{include}") < text.index("## Where this project differs from the paper")
+    assert "{include}" not in render({}, _ladder(15.0, 28.0))
+
+
+def test_docs_validation_includes_the_generated_section():
+    """docs/validation.md is what the template renders with config/convergence.yaml's morphology_section."""
+    from pathlib import Path
+
+    import yaml
+
+    root = Path(__file__).resolve().parents[2]
+    name = yaml.safe_load((root / "config" / "convergence.yaml").read_text())["validation"]["morphology_section"]
+    assert f"```{{include}} {name}\n```" in (root / "docs" / "validation.md").read_text()
