@@ -100,9 +100,9 @@ def test_case_row_reads_a_microscope_file():
 
 
 def test_the_validation_report_includes_the_section_when_named():
-    from vesicle_core.validation.report import render
-
     from test_validation import _ladder  # the same directory, on the path in pytest's default import mode
+
+    from vesicle_core.validation.report import render
 
     text = render({"morphology_section": "validation_morphology.md"}, _ladder(15.0, 28.0))
     assert "```{include} validation_morphology.md\n```" in text
