@@ -130,7 +130,9 @@ def _claim3(rows):
         compressed = r["corr"] < 0
         out.append({**r, "polar": bool(polar), "compressed": bool(compressed), "holds": bool(polar and compressed)})
     n_yes = sum(r["holds"] for r in out)
-    return {"rows": out, "n": len(out), "n_yes": n_yes, "verdict": _verdict(n_yes, len(out)),
+    exp = [r for r in out if r["delta"] > 0.5]
+    return {"rows": out, "n": len(out), "n_yes": n_yes, "verdict": _verdict(n_yes, len(out)), "n_exp": len(exp),
+            "n_exp_yes": sum(r["holds"] for r in exp),
             "n_polar": sum(r["polar"] for r in out), "n_compressed": sum(r["compressed"] for r in out)}
 
 
