@@ -149,3 +149,17 @@ def test_a_shared_smoother_must_have_the_energy_smoothing_length():
     a = wrinkle_location(v, f, h, (1, 0, 0), smoothing=0.3)
     b = wrinkle_location(v, f, h, (1, 0, 0), smoothing=0.3, smoother=HeatSmoother(v, f, 0.3))
     assert np.allclose(a.enrichment, b.enrichment, rtol=1e-12)
+
+
+def test_a_run_that_reaches_every_paper_time_writes_and_reads_back(tmp_path):
+    from vesicle_core.data.datasets import write_dataset
+    from vesicle_core.validation.claims import case_row
+
+    traj = _trajectory(times=(0.0, 0.5, 1.0, 1.5, 2.0, 2.4), eps=(0.0, 0.005, 0.01, 0.015, 0.02, 0.02))
+    ds = microscope_from_trajectory(traj, spectra=xr.Dataset({"t_star": 2.0}), n_images=0, n_theta=64,
+                                    morphology_stride=10)
+    write_dataset(ds, tmp_path / "m.nc")
+    with xr.open_dataset(tmp_path / "m.nc") as back:
+        row = case_row("c", back.load())
+    assert row["paper_outside"] == [] and sorted(row["paper"]) == [0.0, 0.5, 1.0, 1.46, 2.0, 2.33]
+    assert row["pattern_t_star"] == "ripples" and row["t_star"] == 2.0

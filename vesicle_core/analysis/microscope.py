@@ -219,7 +219,7 @@ def microscope_from_trajectory(traj: xr.Dataset, *, spectra: xr.Dataset | None =
                           stride=stride, n_theta=n_theta, k_max=k_max, crest_resolution=opts["resolution"],
                           k_star_min=CS.K_STAR_MIN, image_pixel=float(optics.pixel_um / radius_um),
                           image_half_width=half_width, ellipsoid_source="spectra" if spectra is not None else "fit"))
-    attrs.update(morph_attrs, pattern_classes=" ".join(CLASSES), microscope_wall_time_s=outline_s,
+    attrs.update(netcdf_safe_attrs(morph_attrs), pattern_classes=" ".join(CLASSES), microscope_wall_time_s=outline_s,
                  morphology_wall_time_s=morph_s if morphology_stride is not None else 0.0)
     run_s = float(np.asarray(traj.attrs.get("wall_time_s", math.nan)).ravel()[0])
     attrs["cost_fraction"] = (outline_s + attrs["morphology_wall_time_s"]) / run_s if run_s > 0 else math.nan

@@ -24,6 +24,7 @@ seen; the template morphology_claims.md.j2 puts the decisions into words.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -43,6 +44,13 @@ def _verdict(n_yes, n):
 
 def _f(ds, name, j):
     return float(ds[name].values[j]) if name in ds and j is not None else math.nan
+
+
+def _float_list(value):
+    """A list attribute as read back from netCDF: an array, a number, or the JSON text of an empty list."""
+    if isinstance(value, str):
+        value = json.loads(value) if value.strip().startswith("[") else []
+    return [float(x) for x in np.atleast_1d(value)]
 
 
 def _series(mic, morph_time, patterns, time):
@@ -82,7 +90,7 @@ def case_row(case_id, mic, l_star=math.nan) -> dict:
         "vertices": int(mic.attrs.get("mesh_n_vertices", 0) or 0),
         "t_star": mt[j] if j is not None else math.nan, "l_star": float(l_star), "k_star": k_star,
         "pattern_t_star": pat[j] if j is not None else "-", "paper": paper,
-        "paper_outside": list(np.atleast_1d(a.get("paper_times_outside", []))),
+        "paper_outside": _float_list(a.get("paper_times_outside", [])),
         "P": _f(mic, "crest_alignment", j), "low": _f(mic, "low_degree_fraction", j),
         "A": _f(mic, "ec_asymmetry", j), "l_c": _f(mic, "l_c", j),
         "defects": float(mic["defect_density"].values[j, 1]) if j is not None and "defect_density" in mic
