@@ -101,6 +101,10 @@ def test_case_row_reads_a_microscope_file():
     assert r["k_star"] == 60.0 and r["cost"] == pytest.approx(0.05) and r["P"] == 0.5
     assert [s["pattern"] for s in r["series"]] == ["labyrinth", "herringbone", "peanut", "labyrinth"]
     assert math.isnan(case_row("c", mic.drop_vars("is_t_star"))["t_star"])
+    # the peanut frame (t = 0.5) without wrinkles on its outline: shown, not counted for claim 2
+    mic["k_star"].values[75] = np.nan
+    r = case_row("c", mic)
+    assert r["paper"][0.5] == "peanut" and r["n_key"] == 3 and r["peanut_share"] == 0.0
 
 
 def test_the_validation_report_includes_the_section_when_named():

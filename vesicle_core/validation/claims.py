@@ -13,9 +13,11 @@ seen; the template morphology_claims.md.j2 puts the decisions into words.
 * **Claim 1** holds in a case when its pattern at t_* (argmin Delta_2, the paper's moment of l_*) is classed
   herringbone: the crests share an axis only in part (herringbone threshold <= P < ripples threshold). The verdict:
   "holds" in every case, "holds in part" in some, "does not hold" in none.
-* **Claim 2**, per Delta with two or more flow strengths: the share of a case's key frames (t_* and the paper's
-  snapshot times inside the run) classed peanut; the claim holds at that Delta when the strongest flow's share is
-  above zero and above the weakest flow's. The verdict: holds at every Delta, in part, or at none.
+* **Claim 2**, per Delta with two or more flow strengths: the share of a case's wrinkled key frames (t_* and the
+  paper's snapshot times inside the run, counted only where the outline shows wrinkles, i.e. k_* is defined: the
+  class of a frame without wrinkles says nothing about their shape) classed peanut, 0 if none is wrinkled; the
+  claim holds at that Delta when the strongest flow's share is above zero and above the weakest flow's. The
+  verdict: holds at every Delta, in part, or at none.
 * **Claim 3** holds in a case when at t_* the polar caps about the compressional axis carry the most wrinkle energy
   per area of all latitude bands, more than their area share (enrichment > 1), and the wrinkle energy is
   anti-correlated with the local tension (correlation < 0: more wrinkles where the tension is more negative,
@@ -71,13 +73,16 @@ def case_row(case_id, mic, l_star=math.nan) -> dict:
     mt = np.asarray(mic["morph_time"].values, float) if "morph_time" in mic.coords else np.zeros(0)
     star = np.flatnonzero(np.asarray(mic["is_t_star"].values) == 1) if "is_t_star" in mic else []
     j = int(star[0]) if len(star) else None
-    paper = {}
+    time = np.asarray(mic["time"].values, float)
+    # a frame is wrinkled when the microscope sees wrinkles on its outline (k_* defined: above the resolution)
+    wrinkled = [bool(np.isfinite(mic["k_star"].values[int(np.argmin(np.abs(time - t)))])) for t in mt]
+    paper, key = {}, []
     if "paper_time" in mic:
         for k, t in enumerate(np.asarray(mic["paper_time"].values, float)):
             if math.isfinite(t):
                 paper[float(t)] = pat[k]
-    key = ([pat[j]] if j is not None else []) + list(paper.values())
-    time = np.asarray(mic["time"].values, float)
+                key += [pat[k]] if wrinkled[k] and k != j else []
+    key += [pat[j]] if j is not None and wrinkled[j] else []
     k_star = float(mic["k_star"].values[int(np.argmin(np.abs(time - mt[j])))]) if j is not None else math.nan
     wall = float(np.asarray(a.get("wall_time_s", math.nan)).ravel()[0])
     outline_s, morph_s = float(a.get("microscope_wall_time_s", math.nan)), float(a.get("morphology_wall_time_s", 0))
@@ -98,7 +103,8 @@ def case_row(case_id, mic, l_star=math.nan) -> dict:
         "polar_enrichment": _f(mic, "polar_enrichment", j), "corr": _f(mic, "tension_correlation", j),
         "max_band": int(np.nanargmax(enrich)) if np.isfinite(enrich).any() else -1, "n_bands": len(enrich),
         "polar_tension": float(band_t[-1]), "equator_tension": float(band_t[0]),
-        "peanut_share": sum(p == "peanut" for p in key) / len(key) if key else math.nan, "n_key": len(key),
+        "peanut_share": sum(p == "peanut" for p in key) / len(key) if key else 0.0, "n_key": len(key),
+        "wrinkled_t_star": bool(j is not None and wrinkled[j]),
         "series": _series(mic, mt, pat, time),
         "wall_s": wall, "outline_s": outline_s, "morphology_s": morph_s,
         "cost": (outline_s + morph_s) / wall if wall > 0 else math.nan,
