@@ -92,10 +92,10 @@ def test_case_row_reads_a_microscope_file():
          "tension_correlation": ("morph_time", [-0.1] * 4), "enrichment": (("morph_time", "band"), np.ones((4, 6))),
          "band_tension": (("morph_time", "band"), np.ones((4, 6))), "k_star": ("time", np.arange(101.0))},
         coords={"morph_time": mt, "time": time},
-        attrs={"delta": 0.116, "S": 552.999999999984, "N": 128, "wall_time_s": 1000.0,
+        attrs={"delta": 0.11600000000000676, "S": 552.999999999984, "N": 128, "wall_time_s": 1000.0,
                "microscope_wall_time_s": 30.0, "morphology_wall_time_s": 20.0, "paper_times_outside": [1.46, 2.0]})
     r = case_row("c", mic, l_star=13.3)
-    assert r["S"] == 553 and r["t_star"] == 0.2 and r["pattern_t_star"] == "herringbone"
+    assert r["S"] == 553 and r["delta"] == 0.116 and r["t_star"] == 0.2 and r["pattern_t_star"] == "herringbone"
     assert r["paper"] == {0.0: "labyrinth", 0.5: "peanut", 1.0: "labyrinth"}
     assert r["peanut_share"] == pytest.approx(1 / 4) and r["n_key"] == 4
     assert r["k_star"] == 60.0 and r["cost"] == pytest.approx(0.05) and r["P"] == 0.5
