@@ -29,7 +29,8 @@ myst_enable_extensions = ["dollarmath", "colon_fence", "deflist"]
 myst_heading_anchors = 4
 # the tutorial notebook needs the tiny workflow's results; CI executes it on them (.ci/run), the site shows its code
 nb_execution_mode = "off"
-exclude_patterns = ["_build", "README.md", "**/.ipynb_checkpoints"]
+# validation_morphology.md is a section of validation.md (included there), not a page of its own
+exclude_patterns = ["_build", "README.md", "**/.ipynb_checkpoints", "validation_morphology.md"]
 autosummary_generate = True
 autodoc_default_options = {"members": True}
 autodoc_typehints = "description"

@@ -9,7 +9,7 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 M = yaml.safe_load((ROOT / "docs" / "measurements.yaml").read_text())
-DJ, PC = M["default_job"], M["paper_converged"]
+DJ, PC, MC = M["default_job"], M["paper_converged"], M["microscope_cost"]
 
 
 def _f(values, digits=2):
@@ -43,12 +43,23 @@ QUOTES = [
         *_f([DJ["l_star"][0], DJ["l_star"][2], DJ["pa_l_star"][0], DJ["pa_l_star"][2]]))),
     ("docs/howto/reproduce-paper.md", "exponent of {} [{}, {}]".format(*_f([PC["exponent"], *PC["interval"]], 3))),
     ("docs/howto/reproduce-paper.md", f"against the paper's {PC['paper_ibm_exponent']}"),
+    *[("docs/explanation/microscopy.md", f"| {c} | {w} | {b} | {o} | {m} | {bp:.2f}% | {ap:.2f}% |")
+      for c, w, b, o, m, bp, ap in zip(MC["cases"], MC["run_wall_s"], MC["before_s"], MC["after_outline_s"],
+                                       MC["after_morphology_s"], MC["before_share_pct"], MC["after_share_pct"],
+                                       strict=True)],
+    ("docs/explanation/microscopy.md", "{} s before, {} s after".format(*MC["outline_ab_s"])),
 ]
 
 
 @pytest.mark.parametrize(("page", "statement"), QUOTES)
 def test_page_quotes_the_recorded_number(page, statement):
     assert " ".join(statement.split()) in _text(page), f"{page} should state {statement!r} (docs/measurements.yaml)"
+
+
+def test_the_recorded_cost_shares_are_the_times_over_the_run():
+    for w, b, o, m, bp, ap in zip(MC["run_wall_s"], MC["before_s"], MC["after_outline_s"], MC["after_morphology_s"],
+                                  MC["before_share_pct"], MC["after_share_pct"], strict=True):
+        assert round(100 * b / w, 2) == bp and round(100 * (o + m) / w, 2) == ap
 
 
 def test_the_recorded_percentages_are_computed_not_copied():

@@ -316,6 +316,11 @@ def test_paper_converged_config_runs_each_point_at_its_own_resolution(tmp_path):
     assert all(j.get("priority", 0) == (192 if "_N192_" in c else 128) for c, j in sims.items())
     assert r.stdout.count("\nmesh_ale: shape\n") == 2 and r.stdout.count("\nmesh_ale: quality\n") == 5
     assert sum(j["rule"] == "theory" for j in jobs) == 14 + 7  # the PA points of Fig. 4, and one per run
+    # the paper's pattern claims: one report over the seven cases' microscope.nc, into the docs page's section
+    (report,) = [j for j in jobs if j["rule"] == "morphology_report"]
+    assert report["output"] == ["docs/validation_morphology.md"]
+    assert sorted(re.findall(r"--case (\S+) results/runs/\1/microscope.nc results/runs/\1/spectra.nc", r.stdout)) \
+        == sorted(sims)
 
 
 def test_validation_config_plans(tmp_path):

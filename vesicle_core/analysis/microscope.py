@@ -5,10 +5,15 @@ from the image along rays, and the spectra of both outlines detrended by the sec
 (:mod:`contour_spectrum`). The fitted ellipsoids are taken from a spectra.nc of the same trajectory where its
 times match (``vesicle decompose`` already fits them), else fitted here.
 
+The wrinkle morphology of the 3D membrane (:mod:`.morphology_series`: metrics, pattern class and where the wrinkle
+energy sits) at fewer frames, on the dimension morph_time: every ``morphology_stride``-th frame of the reversed flow,
+t_* and the paper's snapshot times; k_*(t) of the outline at every analysed frame.
+
 Layout of the result -- coords: time, [t_tau], theta (the rays), k (0..n_theta / 2), sector (centres of the angular
-bins), [image_time, y, x for the stored images]. Variables without suffix describe the outline read from the image
-(what the experimenter measures); ``_section`` ones the exact section (what an ideal microscope would see).
-See docs/reference/datasets.md, "microscope.nc".
+bins), [image_time, y, x for the stored images], morph_time, level, scale, band. Variables without suffix describe
+the outline read from the image (what the experimenter measures); ``_section`` ones the exact section (what an ideal
+microscope would see). The cost: attrs microscope_wall_time_s (outlines), morphology_wall_time_s and, with the run's
+own wall_time_s, cost_fraction = their sum / wall_time_s. See docs/reference/datasets.md, "microscope.nc".
 """
 
 from __future__ import annotations
@@ -24,6 +29,8 @@ from ..errors import check_range
 from ..geometry.surface import resolvable_l_max
 from . import contour_spectrum as CS
 from .micrograph import Optics, radial_contour, render
+from .morphology_series import PAPER_TIMES, frame_morphology, morphology_frames, morphology_variables
+from .pattern_synth import CLASSES
 from .section import main_section, plane
 from .shape import fit_ellipsoid
 
@@ -43,8 +50,31 @@ def _vertices(traj, k):
     return np.stack([np.asarray(traj[c].isel(time=k).values, float) for c in ("node_x", "node_y", "node_z")], 1)
 
 
+def _face_tension(traj, k):
+    return np.asarray(traj["face_tension"].isel(time=k).values, float) if "face_tension" in traj else None
+
+
+def _morphology(traj, faces, idx, spectra, morphology_stride):
+    """The morphology at the frames of :func:`.morphology_series.morphology_frames` among the analysed ``idx``."""
+    time = np.asarray(traj["time"].values, float)[idx]
+    # t_* is spectra.nc's (argmin Delta_2): without it, no frame is marked as t_*
+    t_star = float(spectra["t_star"]) if spectra is not None and "t_star" in spectra else None
+    frames = morphology_frames(time, t_star, morphology_stride, PAPER_TIMES)
+    results = []
+    for j in frames["index"]:
+        k = int(idx[j])
+        v = _vertices(traj, k)
+        results.append(frame_morphology(v, faces, _ellipsoid(spectra, time[j], v), _face_tension(traj, k)))
+    data, coords = morphology_variables(results, time, frames)
+    attrs = {"morphology_stride": int(morphology_stride), "t_star": t_star if t_star is not None else math.nan,
+             "paper_times": [float(t) for t in frames["paper"]], "paper_times_outside": frames["paper_outside"]}
+    if frames["t_star"] >= 0:
+        attrs["pattern_at_t_star"] = results[list(frames["index"]).index(frames["t_star"])]["pattern"]
+    return data, coords, attrs
+
+
 def _ellipsoid(spectra, t, vertices):
-    if spectra is not None:
+    if spectra is not None and "ellipsoid_center" in spectra:
         times = np.asarray(spectra["time"].values, float)
         j = int(np.argmin(np.abs(times - t)))
         if abs(times[j] - t) <= 1e-9 * max(1.0, abs(t)):
@@ -138,17 +168,21 @@ def _image_frames(time, n_images, image_times=None):
 def microscope_from_trajectory(traj: xr.Dataset, *, spectra: xr.Dataset | None = None, optics: Optics | None = None,
                                radius_um: float | None = None, offset: float = 0.0, normal=(0.0, 0.0, 1.0),
                                stride: int = 1, n_theta: int = 512, n_bins: int = 16, n_images: int = 6,
-                               image_times=None, progress: bool = False, command: str | None = None) -> xr.Dataset:
+                               image_times=None, morphology_stride: int | None = 5, progress: bool = False,
+                               command: str | None = None) -> xr.Dataset:
     """The virtual microscope over every ``stride``-th snapshot of ``traj`` (module docstring): focal plane at
     ``offset`` (R) along ``normal`` from the vesicle's first centre; ``radius_um`` R in micrometres (default from
     the trajectory's delta, :func:`default_radius_um`); ``n_images`` images kept in the file, or those of the frames
-    nearest ``image_times`` (gamma_dot (t - t0), e.g. the times of the paper's Fig. 6)."""
+    nearest ``image_times`` (gamma_dot (t - t0), e.g. the times of the paper's Fig. 6); the morphology at every
+    ``morphology_stride``-th analysed frame of the reversed flow, t_* and the paper's times (None: no morphology)."""
     started = time_module.perf_counter()
     optics = Optics() if optics is None else optics
     validate_trajectory(traj)
     stride = int(check_range("stride", stride, 1, None, integer=True))
     check_range("n_images", n_images, 0, 1000, integer=True)
     check_range("offset", offset, -1.5, 1.5)
+    if morphology_stride is not None:
+        check_range("morphology_stride", morphology_stride, 1, None, integer=True)
     faces = _connectivity(traj, "trajectory")
     idx = np.arange(0, traj.sizes["time"], stride)
     delta = float(np.asarray(traj.attrs.get("delta", 0.116)).ravel()[0])
@@ -171,6 +205,12 @@ def microscope_from_trajectory(traj: xr.Dataset, *, spectra: xr.Dataset | None =
         frames.append(_frame(v, faces, where, _ellipsoid(spectra, time[k], v), optics, radius_um, half_width,
                              theta, opts))
     ds = _dataset(frames, traj, idx, theta, _image_frames(time[idx], n_images, image_times), n_bins)
+    outline_s = time_module.perf_counter() - started
+    morph_attrs = {}
+    if morphology_stride is not None:
+        data, coords, morph_attrs = _morphology(traj, faces, idx, spectra, morphology_stride)
+        ds = ds.assign_coords(coords).assign(data)
+    morph_s = time_module.perf_counter() - started - outline_s
     attrs = netcdf_safe_attrs({k: v for k, v in traj.attrs.items()
                                if k not in ("Conventions", "title", "source", "history")})
     attrs.update(cf_attrs("virtual phase-contrast microscopy of a vesicle trajectory: outlines and their spectra",
@@ -179,7 +219,10 @@ def microscope_from_trajectory(traj: xr.Dataset, *, spectra: xr.Dataset | None =
                           stride=stride, n_theta=n_theta, k_max=k_max, crest_resolution=opts["resolution"],
                           k_star_min=CS.K_STAR_MIN, image_pixel=float(optics.pixel_um / radius_um),
                           image_half_width=half_width, ellipsoid_source="spectra" if spectra is not None else "fit"))
-    attrs["microscope_wall_time_s"] = time_module.perf_counter() - started
+    attrs.update(netcdf_safe_attrs(morph_attrs), pattern_classes=" ".join(CLASSES), microscope_wall_time_s=outline_s,
+                 morphology_wall_time_s=morph_s if morphology_stride is not None else 0.0)
+    run_s = float(np.asarray(traj.attrs.get("wall_time_s", math.nan)).ravel()[0])
+    attrs["cost_fraction"] = (outline_s + attrs["morphology_wall_time_s"]) / run_s if run_s > 0 else math.nan
     attrs["k_star_max"] = float(np.nanmax(ds["k_star"].values)) if np.isfinite(ds["k_star"].values).any() \
         else math.nan
     return ds.assign_attrs(attrs)

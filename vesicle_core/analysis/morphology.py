@@ -130,10 +130,11 @@ def _vertex_field(v, f, values):
 
 
 def morphology_metrics(vertices, faces, h, *, scales=DEFAULT_SCALES, levels=DEFAULT_LEVELS,
-                       low_l=6) -> Morphology:
+                       low_l=6, smoothers=None) -> Morphology:
     """All metrics of the height field ``h`` (per vertex, or per triangle: then averaged to the vertices) on the
     closed surface (vertices, faces). ``scales``: smoothing lengths of the crest metrics in wavelengths;
-    ``levels``: Euler-curve levels in units of h's rms, in pairs +-u."""
+    ``levels``: Euler-curve levels in units of h's rms, in pairs +-u. ``smoothers``: {scale: HeatSmoother} already
+    factorised on this surface at scale x the wavelength (a caller that smooths at the same length reuses them)."""
     v, f = _as_mesh(vertices, faces)
     if not all(s >= 0 for s in scales):
         raise ConfigError(f"scales must be >= 0 (in wavelengths), got {scales}")
@@ -145,7 +146,7 @@ def morphology_metrics(vertices, faces, h, *, scales=DEFAULT_SCALES, levels=DEFA
     geometry = edge_angles(v, f, frames)
     orders: list[CrestOrder] = [
         crest_order(v, f, x, s * lam, wavelength=lam, frames=frames, geometry=geometry,
-                    smoother=HeatSmoother(v, f, s * lam)) for s in scales]
+                    smoother=(smoothers or {}).get(s) or HeatSmoother(v, f, s * lam)) for s in scales]
     return Morphology(l_c=l_c, wavelength=lam, rms=rms, levels=np.asarray(levels, float), euler=chi,
                       ec_asymmetry=ec_asymmetry(levels, chi), low_degree_fraction=low_degree_fraction(v, f, x, low_l),
                       crest_alignment=P, crest_axis=axis, scales=tuple(scales), orders=orders)

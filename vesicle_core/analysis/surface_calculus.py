@@ -95,7 +95,10 @@ class HeatSmoother:
         self._lu = None
         if self.sigma > 0:
             A = sp.diags(self.mass) + 0.5 * self.sigma**2 * cotan_laplacian(vertices, faces)
-            self._lu = splu(A.tocsc())
+            # A is symmetric positive definite (mass plus the P1 stiffness matrix): a symmetric ordering without
+            # pivoting factorises it in about half the time of the general LU, with the same solution to rounding
+            self._lu = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
 
     def __call__(self, x):
         x = np.asarray(x, float)

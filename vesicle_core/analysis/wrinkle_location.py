@@ -71,10 +71,12 @@ def _tension_at_vertices(v, f, tension):
     return t
 
 
-def wrinkle_location(vertices, faces, h, axis, tension=None, *, n_bands=6, smoothing=None) -> WrinkleLocation:
+def wrinkle_location(vertices, faces, h, axis, tension=None, *, n_bands=6, smoothing=None,
+                     smoother=None) -> WrinkleLocation:
     """Wrinkle energy per latitude band about ``axis`` (3-vector) and its correlation with ``tension`` (per vertex
     or per triangle, optional). h: per vertex or per triangle. smoothing: length of the energy smoothing in the
-    units of the vertices (default: one wavelength of h; 0: none)."""
+    units of the vertices (default: one wavelength of h; 0: none). smoother: a HeatSmoother of this surface at that
+    length, to reuse its factorisation."""
     v, f = _as_mesh(vertices, faces)
     n_bands = check_range("n_bands", n_bands, 1, 1000, integer=True)
     a = np.asarray(axis, float).reshape(-1)
@@ -84,7 +86,9 @@ def wrinkle_location(vertices, faces, h, axis, tension=None, *, n_bands=6, smoot
     x, _ = _vertex_field(v, f, h)
     t = None if tension is None else _tension_at_vertices(v, f, tension)
     sigma = characteristic_degree(v, f, x)[1] if smoothing is None else float(smoothing)
-    sm = HeatSmoother(v, f, sigma)
+    if smoother is not None and abs(smoother.sigma - sigma) > 1e-12 * max(sigma, 1.0):
+        raise ConfigError(f"smoother: its length {smoother.sigma} is not the smoothing {sigma}")
+    sm = HeatSmoother(v, f, sigma) if smoother is None else smoother
     e = sm(x * x)
     rel = v - volume_centroid(v, f)
     c = np.abs(rel @ a) / np.linalg.norm(rel, axis=1)

@@ -32,7 +32,7 @@ class _Parser(argparse.ArgumentParser):
 # in this order in ``vesicle --help``
 _ADDERS = [
     cli_sim.add_mesh, cli_sim.add_run, cli_analysis.add_decompose, cli_analysis.add_theory, cli_analysis.add_fit,
-    cli_microscopy.add_microscope,
+    cli_microscopy.add_microscope, cli_microscopy.add_pattern_claims,
     cli_post.add_report, cli_sim.add_bench, cli_sim.add_params, cli_post.add_figures, cli_post.add_catalog,
     cli_noise.add_stochastic_pa, cli_noise.add_noise,
 ]

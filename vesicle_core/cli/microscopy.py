@@ -1,6 +1,7 @@
 """``vesicle microscope``: virtual phase-contrast microscopy of a trajectory -> microscope.nc.
 
-Registered in :mod:`vesicle_core.cli`; ``add_microscope(sub)`` adds the subparser.
+Registered in :mod:`vesicle_core.cli`; ``add_microscope(sub)`` adds the subparser, ``add_pattern_claims(sub)`` the
+report of the paper's three pattern claims (docs/validation_morphology.md).
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ def add_microscope(sub):
                    help="images kept in the file, evenly spread over t >= 0 (default 6)")
     p.add_argument("--image-times", type=finite_float("--image-times"), nargs="+", default=None,
                    help="keep the images of the frames nearest these gamma_dot (t - t0) instead (e.g. Fig. 6's)")
+    p.add_argument("--morphology-stride", type=int_in("--morphology-stride", 0, 10**6), default=5,
+                   help="measure the 3D wrinkle morphology and its pattern class at every k-th analysed frame of the "
+                        "reversed flow, plus t_* and the paper's snapshot times (default 5; 0: no morphology)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=_cmd_microscope)
 
@@ -54,13 +58,33 @@ def _cmd_microscope(a):
     with open_trajectory(a.trajectory, require_complete=True) as traj:
         ds = microscope_from_trajectory(traj, spectra=spectra, optics=optics, radius_um=a.radius_um,
                                         offset=a.offset, normal=a.normal, stride=a.stride, n_theta=a.n_theta,
-                                        n_images=a.n_images, image_times=a.image_times, progress=not a.quiet,
+                                        n_images=a.n_images, image_times=a.image_times,
+                                        morphology_stride=a.morphology_stride or None, progress=not a.quiet,
                                         command=" ".join(sys.argv))
     write_dataset(ds, a.output)
-    run_s = float(ds.attrs.get("wall_time_s", float("nan")))
-    own_s = float(ds.attrs["microscope_wall_time_s"])
+    own_s = float(ds.attrs["microscope_wall_time_s"]) + float(ds.attrs["morphology_wall_time_s"])
+    at_star = ds.attrs.get("pattern_at_t_star")
     print(f"wrote {a.output}: {ds.sizes['time']} frames, max k_* {float(ds.attrs['k_star_max']):.3g}, "
           f"outline vs section {float(ds.outline_mismatch.median()):.3f} px rms (median), "
-          f"{own_s:.1f} s ({100 * own_s / run_s:.1f}% "
-          f"of the run's {run_s:.0f} s)")
+          + (f"pattern at t_* {at_star}, " if at_star else "")
+          + f"{own_s:.1f} s ({100 * float(ds.attrs['cost_fraction']):.1f}% of the run's "
+          f"{float(ds.attrs.get('wall_time_s', float('nan'))):.0f} s)")
+    return 0
+
+
+def add_pattern_claims(sub):
+    p = sub.add_parser("pattern-claims", help="the paper's three wrinkle-pattern claims decided from the runs' "
+                                              "microscope.nc -> a Markdown section (docs/validation_morphology.md)")
+    p.add_argument("--case", nargs=3, action="append", required=True, metavar=("CASE_ID", "MICROSCOPE", "SPECTRA"),
+                   help="a case: its id, microscope.nc and spectra.nc (repeat per case)")
+    p.add_argument("--missing", nargs="*", default=[], help="the paper's cases not produced yet (named in the text)")
+    p.add_argument("-o", "--output", required=True, help="Markdown file to write")
+    p.set_defaults(func=_cmd_pattern_claims)
+
+
+def _cmd_pattern_claims(a):
+    from ..validation.report import write_morphology_claims
+
+    out = write_morphology_claims([tuple(c) for c in a.case], a.output, a.missing)
+    print(f"wrote {out}: {len(a.case)} cases")
     return 0

@@ -211,6 +211,9 @@ def add_report(sub):
                    help="figure to copy next to the report and embed (repeatable)")
     p.add_argument("--resolution-note", default="", help="one line on the resolution used")
     p.add_argument("--wall-time-note", default="", help="one line on how long the study took")
+    p.add_argument("--morphology-section", default=None,
+                   help="Markdown file, relative to the report, included as its section on the paper's pattern "
+                        "claims (written by 'vesicle pattern-claims' from the paper's set)")
     p.set_defaults(func=_cmd_report)
 
 
@@ -240,6 +243,7 @@ def _cmd_report(a):
         "box": {"small": a.box[0], "large": a.box[1]} if a.box else None,
         "figures": figures,
         "discussion": [f"- {a.wall_time_note}"] if a.wall_time_note else [],
+        "morphology_section": a.morphology_section,
     }
     write_report(manifest, out)
     print(f"wrote {out}")

@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from .claims import morphology_claims  # noqa: F401 -- the section of docs/validation_morphology.md
 from .study import (
     PAPER_BOX_SHAPE,
     PAPER_EXPONENT_IBM,

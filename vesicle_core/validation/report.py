@@ -123,3 +123,26 @@ def write_report(manifest, out_md) -> Path:
     text = render(manifest, data)
     atomic_write_text(text, out_md)
     return out_md
+
+
+def write_morphology_claims(cases, out_md, missing=()) -> Path:
+    """The paper's three pattern claims (templates/morphology_claims.md.j2) from ``cases``, a list of (case id,
+    microscope.nc path, spectra.nc path or None), written to ``out_md`` (docs/validation_morphology.md, which
+    docs/validation.md includes). ``missing``: the paper's cases not yet produced, named in the section."""
+    import xarray as xr
+
+    from ..io import atomic_write_text
+    from .claims import case_row
+
+    rows = []
+    for case_id, mic_path, spec_path in cases:
+        l_star = math.nan
+        if spec_path:
+            with xr.open_dataset(spec_path) as spec:
+                l_star = float(spec["l_star"]) if "l_star" in spec else math.nan
+        with xr.open_dataset(mic_path) as mic:
+            rows.append(case_row(case_id, mic.load(), l_star))
+    text = render_section("morphology_claims", rows, list(missing))
+    out_md = Path(out_md)
+    atomic_write_text(text, out_md)
+    return out_md

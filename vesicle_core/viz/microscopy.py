@@ -1,7 +1,8 @@
 """The paper's Fig. 6 for one run, from the virtual microscope: the phase-contrast images (``vesicle microscope``)
 above the 3D membrane seen along the same optical axis at the same times, and below them k_*(t) of the outline
 beside l_*(t) of the 3D spectrum (eq. 31), with sqrt(l_* (l_* + 1) / 2), what the outline of an isotropic pattern
-of degree l_* would show (Rice's formula; docs/explanation/microscopy.md).
+of degree l_* would show (Rice's formula; docs/explanation/microscopy.md); along the top of the l_* panel, the
+pattern class of each frame whose morphology microscope.nc holds (bold: t_*).
 """
 
 from __future__ import annotations
@@ -61,11 +62,31 @@ def _series_row(fig, gs, mic, spectra, n):
         ls = np.asarray(spectra["l_star_t"].values, float)
         ax_l.plot(ts, ls, "k-", lw=1.2, label="$l_*$ (eq. 31)")
         ax_k.plot(ts, np.sqrt(ls * (ls + 1) / 2), "C2:", lw=1.2, label=r"$\sqrt{l_*(l_*+1)/2}$")
+    _pattern_marks(ax_l, mic)
     for ax, ylabel in ((ax_k, "wrinkles seen in focus"), (ax_l, "3D wrinkle mode")):
         ax.set_xlabel(r"$\bar t = \dot\gamma t$")
         ax.set_ylabel(ylabel)
         ax.axvline(0.0, color="0.7", lw=0.8)
         ax.legend(fontsize=7, loc="best")
+
+
+#: one-letter labels of the pattern classes on the l_* panel
+_MARK = {"ripples": "R", "herringbone": "H", "labyrinth": "L", "hexagons_up": "X+", "hexagons_down": "X-",
+         "peanut": "P"}
+
+
+def _pattern_marks(ax, mic):
+    """The pattern class of each classified frame (microscope.nc's morph_time) as a letter along the top of ``ax``,
+    t_* in bold."""
+    if "pattern" not in mic:
+        return
+    names = mic.attrs.get("pattern_classes", "").split() or mic["pattern"].attrs.get("flag_meanings", "").split()
+    star = np.asarray(mic["is_t_star"].values) if "is_t_star" in mic else np.zeros(mic.sizes["morph_time"])
+    for t, p, s in zip(np.asarray(mic["morph_time"].values, float), mic["pattern"].values, star, strict=True):
+        ax.text(t, 0.97, _MARK.get(names[int(p)], "?"), transform=ax.get_xaxis_transform(), ha="center", va="top",
+                fontsize=7, fontweight="bold" if s else "normal", color="C3" if s else "0.3")
+    ax.text(0.01, 0.02, "class: R ripples, H herringbone, L labyrinth, X+/X- hexagons, P peanut (bold: t_*)",
+            transform=ax.transAxes, fontsize=6, color="0.3")
 
 
 def plot_microscope(microscope, trajectory, spectra=None, outputs="microscope.png", *, dpi=150, engine=None):

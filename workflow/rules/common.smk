@@ -215,6 +215,23 @@ def all_microscopes():
     return [f"results/runs/{c}/microscope.nc" for c in CASES]
 
 
+def morphology_report_path():
+    return config["morphology_report"].get("report", "docs/validation_morphology.md")
+
+
+def morphology_report_args(wildcards, input):
+    """--case CASE_ID MICROSCOPE SPECTRA per case of the sweep (rule morphology_report)."""
+    return " ".join(f"--case {c} {input[f'mic_{c}']} {input[f'spec_{c}']}" for c in CASES)
+
+
+def morphology_report_inputs():
+    out = {}
+    for c in CASES:
+        out[f"mic_{c}"] = f"results/runs/{c}/microscope.nc"
+        out[f"spec_{c}"] = f"results/runs/{c}/spectra.nc"
+    return out
+
+
 def all_theories():
     return [f"results/theory/{t}.nc" for t in THEORIES]
 
@@ -239,6 +256,8 @@ def all_figures():
 
 def all_targets():
     extra = [config["validation"].get("report", "docs/validation.md")] if "validation" in config else []
+    if "morphology_report" in config:
+        extra.append(morphology_report_path())
     return ["results/catalog.csv", "results/catalog.parquet", "results/catalog.json", *all_figures(), *extra]
 
 
@@ -326,4 +345,6 @@ def validation_args(wildcards, input):
     for f in input.figures:
         parts.append(f"--figure {f} '{_caption(f)}'")
     parts.append(f"--resolution-note '{v['resolution_note']}'")
+    if v.get("morphology_section"):
+        parts.append(f"--morphology-section {v['morphology_section']}")
     return " ".join(parts)
