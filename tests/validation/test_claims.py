@@ -58,13 +58,13 @@ def test_claim_3_needs_polar_energy_and_compression():
     text = _text(rows)
     assert "membrane is compressed\" **Verdict: the claim holds.**" in text
     assert "in 2 of 2 cases, and the wrinkle energy is anti-correlated with the local tension" in text
-    assert "; both hold in 2." in text  # no elongated case: nothing said about Delta = 0.997
+    assert "; both hold in 2 of 2." in text  # no elongated case: nothing said about Delta = 0.997
     rows.append(_row(947, delta=0.997))
-    assert "both hold in 3, 1 of them of the 1 at the experiment's Delta = 0.997" in _text(rows)
+    assert "both hold in 3 of 3, and in 1 of the 1 at the experiment's Delta = 0.997" in _text(rows)
     rows.pop()
     rows[0]["corr"] = 0.3  # wrinkles where the tension is higher: not where the membrane is compressed
     text = _text(rows)
-    assert "**Verdict: the claim holds in part.**" in text and "in 1 of 2; both hold in 1" in text
+    assert "**Verdict: the claim holds in part.**" in text and "in 1 of 2; both hold in 1 of 2" in text
     rows[1].update(max_band=0, polar_enrichment=0.8)  # the energy sits at the equator
     text = _text(rows)
     assert "compressed\" **Verdict: the claim does not hold.**" in text and "| D0.116_S2224 | 0.8 | equator |" in text
