@@ -137,8 +137,10 @@ def morphology_variables(results, time, frames, scales=DEFAULT_SCALES, n_bands=N
     edges = np.linspace(0.0, 1.0, n_bands + 1)
     coords = {"morph_time": ("morph_time", np.asarray(time, float)[idx],
                              {"units": "1", "long_name": "gamma_dot (t - t0) of the classified frames"}),
-              "level": ("level", np.asarray(DEFAULT_LEVELS, float), {"units": "rms of A_p", "long_name": "level u"}),
-              "scale": ("scale", np.asarray(scales, float), {"units": "wavelength", "long_name": "crest smoothing"}),
+              "level": ("level", np.asarray(DEFAULT_LEVELS, float),
+                        {"units": "1", "long_name": "level u, in rms of A_p"}),
+              "scale": ("scale", np.asarray(scales, float), {"units": "1",
+                                                                       "long_name": "crest smoothing, in wavelengths"}),
               "band": ("band", 0.5 * (edges[:-1] + edges[1:]),
                        {"units": "1", "long_name": "centre of the band in |cos| of the latitude about x "
                                                    "(0 equator, 1 poles)"})}
